@@ -1,0 +1,152 @@
+//! Curtis 1232E/SE speed-mode rate logic (thesis 5.6, fig. A.3 / 5.50).
+//!
+//! The speed command moves towards the target at a rate chosen by the case (full,
+//! partial or low acceleration; neutral or partial deceleration). A rate parameter of
+//! `t` seconds means `Typical Max Speed / t` rpm/s. Between the LS and HS thresholds
+//! (percent of Typical Max Speed, on the actual motor speed) the LS and HS ramp rates
+//! blend linearly; partial acceleration blends linearly (in rpm/s) between the Low
+//! Accel Rate at the low-throttle threshold and the Accel Rate at full throttle.
+
+use crate::params::{DirectionRates, Params};
+use crate::throttle::dir_index;
+
+/// Which branch of the switching logic is active; reported as an output channel so a
+/// comparison can split errors by controller state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum RateCase {
+    /// Command equals the target.
+    Hold = 0,
+    FullAccel = 1,
+    PartialAccel = 2,
+    LowAccel = 3,
+    NeutralDecel = 4,
+    PartialDecel = 5,
+}
+
+/// Multipliers on the ramp rates, `[accel, decel]` per direction `[fwd, rev]`
+/// (the `inverter_rate_scale` effect; 1 = as parameterised).
+pub type RateScale = [[f32; 2]; 2];
+
+#[inline]
+fn rpm_per_s(p: &Params, seconds: f32) -> f32 {
+    if seconds > 0.0 {
+        p.typical_max_speed_rpm / seconds
+    } else {
+        0.0
+    }
+}
+
+#[inline]
+fn hs_ls_blend(p: &Params, r: &DirectionRates, speed_rpm: f32, hs_s: f32, ls_s: f32) -> f32 {
+    let s = if speed_rpm < 0.0 {
+        -speed_rpm
+    } else {
+        speed_rpm
+    } / p.typical_max_speed_rpm
+        * 100.0;
+    let w = if r.hs_pct > r.ls_pct {
+        ((s - r.ls_pct) / (r.hs_pct - r.ls_pct)).clamp(0.0, 1.0)
+    } else if s >= r.ls_pct {
+        1.0
+    } else {
+        0.0
+    };
+    let lo = rpm_per_s(p, ls_s);
+    lo + w * (rpm_per_s(p, hs_s) - lo)
+}
+
+/// Ramp rate [rpm/s] and case for the current throttle, target, command and speed.
+pub fn ramp_rate(
+    p: &Params,
+    scale: &RateScale,
+    mapped_pct: f32,
+    target_rpm: f32,
+    cmd_rpm: f32,
+    speed_rpm: f32,
+) -> (f32, RateCase) {
+    if target_rpm == cmd_rpm {
+        return (0.0, RateCase::Hold);
+    }
+    let moving = if cmd_rpm != 0.0 { cmd_rpm } else { target_rpm };
+    let d = dir_index(moving);
+    let Some(r) = p.rates.dir.get(d) else {
+        return (0.0, RateCase::Hold);
+    };
+    let sc = scale.get(d).copied().unwrap_or([1.0, 1.0]);
+    let same_side = (target_rpm >= 0.0) == (cmd_rpm >= 0.0) || cmd_rpm == 0.0;
+    let mag = |v: f32| if v < 0.0 { -v } else { v };
+    let accelerating = same_side && mag(target_rpm) > mag(cmd_rpm);
+    if accelerating {
+        let acc = hs_ls_blend(p, r, speed_rpm, r.accel_hs_s, r.accel_ls_s);
+        let (rate, case) = if mapped_pct >= p.full_throttle_pct {
+            (acc, RateCase::FullAccel)
+        } else if mapped_pct <= p.low_throttle_pct {
+            (rpm_per_s(p, r.low_accel_s), RateCase::LowAccel)
+        } else {
+            let f = (mapped_pct - p.low_throttle_pct) / (p.full_throttle_pct - p.low_throttle_pct);
+            let low = rpm_per_s(p, r.low_accel_s);
+            (low + f * (acc - low), RateCase::PartialAccel)
+        };
+        (rate * sc[0], case)
+    } else if mapped_pct <= 0.0 {
+        let rate = hs_ls_blend(p, r, speed_rpm, r.neutral_decel_hs_s, r.neutral_decel_ls_s);
+        (rate * sc[1], RateCase::NeutralDecel)
+    } else {
+        (
+            rpm_per_s(p, r.partial_decel_s) * sc[1],
+            RateCase::PartialDecel,
+        )
+    }
+}
+
+/// Move `cmd` towards `target` by at most `rate * dt`.
+#[inline]
+pub fn advance(cmd_rpm: f32, target_rpm: f32, rate_rpm_s: f32, dt_s: f32) -> f32 {
+    let max = rate_rpm_s * dt_s;
+    cmd_rpm + (target_rpm - cmd_rpm).clamp(-max, max)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::{CouplingStiffness, RateSet};
+
+    const ONE: RateScale = [[1.0, 1.0], [1.0, 1.0]];
+
+    #[test]
+    fn cases_and_rates_identified() {
+        let p = Params::thesis(RateSet::Identified, CouplingStiffness::Identified);
+        let (r, c) = ramp_rate(&p, &ONE, 100.0, 2100.0, 500.0, 500.0);
+        assert_eq!(c, RateCase::FullAccel);
+        assert!((r - 3300.0 / 3.9845).abs() < 1e-3);
+        let (r, c) = ramp_rate(&p, &ONE, 5.0, 300.0, 0.0, 0.0);
+        assert_eq!(c, RateCase::LowAccel);
+        assert!((r - 3300.0 / 32.0).abs() < 1e-3);
+        let (_, c) = ramp_rate(&p, &ONE, 50.0, 1400.0, 200.0, 200.0);
+        assert_eq!(c, RateCase::PartialAccel);
+        // Neutral deceleration below LS (40 % of 3300 = 1320 rpm): LS rate.
+        let (r, c) = ramp_rate(&p, &ONE, 0.0, 0.0, 1000.0, 1000.0);
+        assert_eq!(c, RateCase::NeutralDecel);
+        assert!((r - 3300.0 / 3.1399).abs() < 1e-3);
+        // Halfway between LS (1320) and HS (2310): halfway between the rates.
+        let (r, _) = ramp_rate(&p, &ONE, 0.0, 0.0, 1815.0, 1815.0);
+        let want = 0.5 * (3300.0 / 3.1399 + 3300.0 / 2.2693);
+        assert!((r - want).abs() < 0.1, "{r} vs {want}");
+        let (r, c) = ramp_rate(&p, &ONE, 30.0, 500.0, 1500.0, 1500.0);
+        assert_eq!(c, RateCase::PartialDecel);
+        assert!((r - 3300.0 / 9.9752).abs() < 1e-3);
+        // Reverse uses the reverse rates.
+        let (r, c) = ramp_rate(&p, &ONE, 100.0, -500.0, -100.0, -100.0);
+        assert_eq!(c, RateCase::FullAccel);
+        assert!((r - 3300.0 / 3.5125).abs() < 1e-3);
+    }
+
+    #[test]
+    fn advance_never_overshoots() {
+        assert_eq!(advance(0.0, 5.0, 1000.0, 0.001), 1.0);
+        assert_eq!(advance(4.5, 5.0, 1000.0, 0.001), 5.0);
+        assert_eq!(advance(0.0, -5.0, 1000.0, 0.001), -1.0);
+    }
+}

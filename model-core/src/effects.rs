@@ -1,0 +1,308 @@
+//! Physical effects the thesis model lacks, each a small block with parameters that
+//! default to "off". On the host they are set at run time (`--effects FILE.toml`); on
+//! the target the firmware builds a `const Effects` from the same file.
+//!
+//! Adding an effect: a field here (off by default), its few lines at the one place in
+//! `model.rs` where it acts, and its id in `EFFECT_IDS` — nothing else changes.
+
+/// Coulomb + viscous friction at the differential case (thesis 7: "missing").
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DifferentialFriction {
+    /// [N m] Coulomb torque at the case, axle frame.
+    pub coulomb_nm: f32,
+    /// [N m s/rad] viscous coefficient at the case, axle frame.
+    pub viscous_nm_s: f32,
+}
+
+/// The effect library. `Effects::NONE` is the thesis model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Effects {
+    /// `differential_friction`: torque lost at the differential case.
+    pub differential_friction: DifferentialFriction,
+    /// `axle_friction_scale`: multipliers on the L, R friction maps (1 = off).
+    pub axle_friction_scale: [f32; 2],
+    /// `controller_delay`: [s] pure delay between the throttle and the speed controller
+    /// (thesis 6.1). Capped at `DELAY_CAPACITY` steps.
+    pub controller_delay_s: f32,
+    /// `inverter_rate_scale`: multipliers on the Curtis ramp rates `[accel, decel]` for
+    /// `[forward, reverse]` (1 = off).
+    pub inverter_rate_scale: [[f32; 2]; 2],
+    /// `coupling_stiffness`: [N m/rad] replaces the coupling stiffness when set.
+    pub coupling_stiffness: Option<f32>,
+    /// `coupling_damping`: [N m s/rad] replaces the coupling damping when set.
+    pub coupling_damping: Option<f32>,
+    /// `inertia_scale`: multipliers on the SuT, load L, load R inertias (1 = off).
+    pub inertia_scale: [f32; 3],
+    /// `connector_resistance`: [ohm] replaces the connector resistance when set.
+    pub connector_resistance: Option<f32>,
+    /// `supply_resistance`: [ohm] DPU source resistance: the busbars sag with current.
+    pub supply_resistance: f32,
+    /// `regen_efficiency`: [-] fraction of regenerated power additionally lost (0 = off).
+    pub regen_loss: f32,
+    /// `torque_sensor_offset`: [N m] added to C_Kistler_L, C_Kistler_R.
+    pub torque_sensor_offset: [f32; 2],
+    /// `torque_sensor_gain`: [-] multiplies C_Kistler_L, C_Kistler_R (1 = off).
+    pub torque_sensor_gain: [f32; 2],
+    /// `speed_sensor_gain`: [-] multiplies SuTMotorEnc, T_Kistler_L, T_Kistler_R, SiemensEnc.
+    pub speed_sensor_gain: [f32; 4],
+    /// `current_sensor_gain`: [-] multiplies I_DPU 2.7, I_DC, the two I_XLML probes, I_XLMR 2.3.
+    pub current_sensor_gain: [f32; 4],
+}
+
+/// Longest controller delay in steps (1.6 KiB of state): 0.4 s at 1 ms, 40 ms at 100 µs.
+pub const DELAY_CAPACITY: usize = 400;
+
+/// Every effect id, as used in effect files.
+pub const EFFECT_IDS: &[&str] = &[
+    "differential_friction",
+    "axle_friction_scale",
+    "controller_delay",
+    "inverter_rate_scale",
+    "coupling_stiffness",
+    "coupling_damping",
+    "inertia_scale",
+    "connector_resistance",
+    "supply_resistance",
+    "regen_efficiency",
+    "torque_sensor_offset",
+    "torque_sensor_gain",
+    "speed_sensor_gain",
+    "current_sensor_gain",
+];
+
+impl Effects {
+    /// Every effect off: the thesis model.
+    pub const NONE: Self = Self {
+        differential_friction: DifferentialFriction {
+            coulomb_nm: 0.0,
+            viscous_nm_s: 0.0,
+        },
+        axle_friction_scale: [1.0, 1.0],
+        controller_delay_s: 0.0,
+        inverter_rate_scale: [[1.0, 1.0], [1.0, 1.0]],
+        coupling_stiffness: None,
+        coupling_damping: None,
+        inertia_scale: [1.0, 1.0, 1.0],
+        connector_resistance: None,
+        supply_resistance: 0.0,
+        regen_loss: 0.0,
+        torque_sensor_offset: [0.0, 0.0],
+        torque_sensor_gain: [1.0, 1.0],
+        speed_sensor_gain: [1.0; 4],
+        current_sensor_gain: [1.0; 4],
+    };
+
+    /// True when every effect is off.
+    pub fn is_none(&self) -> bool {
+        *self == Self::NONE
+    }
+
+    /// Check ranges; returns the id of the first effect with an invalid parameter.
+    pub fn validate(&self) -> Result<(), &'static str> {
+        let fin = |v: f32| v.is_finite();
+        let pos = |v: f32| v.is_finite() && v > 0.0;
+        let df = &self.differential_friction;
+        if !(fin(df.coulomb_nm)
+            && df.coulomb_nm >= 0.0
+            && fin(df.viscous_nm_s)
+            && df.viscous_nm_s >= 0.0)
+        {
+            return Err("differential_friction");
+        }
+        if !self
+            .axle_friction_scale
+            .iter()
+            .all(|v| fin(*v) && *v >= 0.0)
+        {
+            return Err("axle_friction_scale");
+        }
+        if !(fin(self.controller_delay_s) && self.controller_delay_s >= 0.0) {
+            return Err("controller_delay");
+        }
+        if !self.inverter_rate_scale.iter().flatten().all(|v| pos(*v)) {
+            return Err("inverter_rate_scale");
+        }
+        if self.coupling_stiffness.is_some_and(|v| !pos(v)) {
+            return Err("coupling_stiffness");
+        }
+        if self.coupling_damping.is_some_and(|v| !(fin(v) && v >= 0.0)) {
+            return Err("coupling_damping");
+        }
+        if !self.inertia_scale.iter().all(|v| pos(*v)) {
+            return Err("inertia_scale");
+        }
+        if self
+            .connector_resistance
+            .is_some_and(|v| !(fin(v) && v >= 0.0))
+        {
+            return Err("connector_resistance");
+        }
+        if !(fin(self.supply_resistance)
+            && self.supply_resistance >= 0.0
+            && self.supply_resistance < 1.0)
+        {
+            return Err("supply_resistance");
+        }
+        if !(fin(self.regen_loss) && (0.0..1.0).contains(&self.regen_loss)) {
+            return Err("regen_efficiency");
+        }
+        if !self.torque_sensor_offset.iter().all(|v| fin(*v)) {
+            return Err("torque_sensor_offset");
+        }
+        if !self.torque_sensor_gain.iter().all(|v| pos(*v)) {
+            return Err("torque_sensor_gain");
+        }
+        if !self.speed_sensor_gain.iter().all(|v| pos(*v)) {
+            return Err("speed_sensor_gain");
+        }
+        if !self.current_sensor_gain.iter().all(|v| pos(*v)) {
+            return Err("current_sensor_gain");
+        }
+        Ok(())
+    }
+}
+
+impl Default for Effects {
+    fn default() -> Self {
+        Self::NONE
+    }
+}
+
+/// Why `Effects::set` refused a parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum EffectKeyError {
+    /// No effect with this id.
+    UnknownEffect,
+    /// The effect has no parameter with this name; the names it accepts.
+    UnknownParameter(&'static [&'static str]),
+}
+
+/// The parameter names of each effect, as written in effect files.
+pub const EFFECT_PARAMS: &[(&str, &[&str])] = &[
+    (
+        "differential_friction",
+        &["coulomb_nm", "viscous_nm_s_per_rad"],
+    ),
+    ("axle_friction_scale", &["left", "right"]),
+    ("controller_delay", &["delay_s"]),
+    (
+        "inverter_rate_scale",
+        &["accel_fwd", "decel_fwd", "accel_rev", "decel_rev"],
+    ),
+    ("coupling_stiffness", &["stiffness_nm_per_rad"]),
+    ("coupling_damping", &["damping_nm_s_per_rad"]),
+    ("inertia_scale", &["sut", "load_l", "load_r"]),
+    ("connector_resistance", &["resistance_ohm"]),
+    ("supply_resistance", &["resistance_ohm"]),
+    ("regen_efficiency", &["extra_loss"]),
+    ("torque_sensor_offset", &["left_nm", "right_nm"]),
+    ("torque_sensor_gain", &["left", "right"]),
+    (
+        "speed_sensor_gain",
+        &["sut_motor", "flange_l", "flange_r", "siemens"],
+    ),
+    ("current_sensor_gain", &["dpu", "dc", "xlml", "xlmr"]),
+];
+
+impl Effects {
+    /// Set one parameter by effect id and parameter name (the effect-file vocabulary).
+    /// Range checks happen in [`Effects::validate`], once every parameter is set.
+    pub fn set(&mut self, effect: &str, param: &str, v: f32) -> Result<(), EffectKeyError> {
+        let names = EFFECT_PARAMS
+            .iter()
+            .find(|(id, _)| *id == effect)
+            .map(|(_, p)| *p)
+            .ok_or(EffectKeyError::UnknownEffect)?;
+        let slot: Option<&mut f32> = match (effect, param) {
+            ("differential_friction", "coulomb_nm") => {
+                Some(&mut self.differential_friction.coulomb_nm)
+            }
+            ("differential_friction", "viscous_nm_s_per_rad") => {
+                Some(&mut self.differential_friction.viscous_nm_s)
+            }
+            ("axle_friction_scale", "left") => Some(&mut self.axle_friction_scale[0]),
+            ("axle_friction_scale", "right") => Some(&mut self.axle_friction_scale[1]),
+            ("controller_delay", "delay_s") => Some(&mut self.controller_delay_s),
+            ("inverter_rate_scale", "accel_fwd") => Some(&mut self.inverter_rate_scale[0][0]),
+            ("inverter_rate_scale", "decel_fwd") => Some(&mut self.inverter_rate_scale[0][1]),
+            ("inverter_rate_scale", "accel_rev") => Some(&mut self.inverter_rate_scale[1][0]),
+            ("inverter_rate_scale", "decel_rev") => Some(&mut self.inverter_rate_scale[1][1]),
+            ("coupling_stiffness", "stiffness_nm_per_rad") => {
+                self.coupling_stiffness = Some(v);
+                None
+            }
+            ("coupling_damping", "damping_nm_s_per_rad") => {
+                self.coupling_damping = Some(v);
+                None
+            }
+            ("inertia_scale", "sut") => Some(&mut self.inertia_scale[0]),
+            ("inertia_scale", "load_l") => Some(&mut self.inertia_scale[1]),
+            ("inertia_scale", "load_r") => Some(&mut self.inertia_scale[2]),
+            ("connector_resistance", "resistance_ohm") => {
+                self.connector_resistance = Some(v);
+                None
+            }
+            ("supply_resistance", "resistance_ohm") => Some(&mut self.supply_resistance),
+            ("regen_efficiency", "extra_loss") => Some(&mut self.regen_loss),
+            ("torque_sensor_offset", "left_nm") => Some(&mut self.torque_sensor_offset[0]),
+            ("torque_sensor_offset", "right_nm") => Some(&mut self.torque_sensor_offset[1]),
+            ("torque_sensor_gain", "left") => Some(&mut self.torque_sensor_gain[0]),
+            ("torque_sensor_gain", "right") => Some(&mut self.torque_sensor_gain[1]),
+            ("speed_sensor_gain", "sut_motor") => Some(&mut self.speed_sensor_gain[0]),
+            ("speed_sensor_gain", "flange_l") => Some(&mut self.speed_sensor_gain[1]),
+            ("speed_sensor_gain", "flange_r") => Some(&mut self.speed_sensor_gain[2]),
+            ("speed_sensor_gain", "siemens") => Some(&mut self.speed_sensor_gain[3]),
+            ("current_sensor_gain", "dpu") => Some(&mut self.current_sensor_gain[0]),
+            ("current_sensor_gain", "dc") => Some(&mut self.current_sensor_gain[1]),
+            ("current_sensor_gain", "xlml") => Some(&mut self.current_sensor_gain[2]),
+            ("current_sensor_gain", "xlmr") => Some(&mut self.current_sensor_gain[3]),
+            _ => return Err(EffectKeyError::UnknownParameter(names)),
+        };
+        if let Some(s) = slot {
+            *s = v;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_listed_parameter_can_be_set_and_changes_something() {
+        for (id, params) in EFFECT_PARAMS {
+            for p in *params {
+                let mut fx = Effects::NONE;
+                fx.set(id, p, 0.5)
+                    .unwrap_or_else(|e| panic!("{id}.{p}: {e:?}"));
+                assert_ne!(fx, Effects::NONE, "{id}.{p} changed nothing");
+            }
+        }
+        assert_eq!(EFFECT_IDS.len(), EFFECT_PARAMS.len());
+        assert!(EFFECT_PARAMS.iter().all(|(id, _)| EFFECT_IDS.contains(id)));
+    }
+
+    #[test]
+    fn unknown_names_are_refused() {
+        let mut fx = Effects::NONE;
+        assert_eq!(
+            fx.set("warp_drive", "x", 1.0),
+            Err(EffectKeyError::UnknownEffect)
+        );
+        assert!(matches!(
+            fx.set("controller_delay", "delay", 1.0),
+            Err(EffectKeyError::UnknownParameter(["delay_s"]))
+        ));
+    }
+
+    #[test]
+    fn validate_names_the_bad_effect() {
+        let mut fx = Effects::NONE;
+        fx.set("regen_efficiency", "extra_loss", 1.5).unwrap();
+        assert_eq!(fx.validate(), Err("regen_efficiency"));
+    }
+}

@@ -1,0 +1,416 @@
+//! The twin: configuration, state, and the fixed-step `step`.
+
+use crate::controller::Pid;
+use crate::curtis::{self, RateCase};
+use crate::data::Maps;
+use crate::drivetrain::{
+    SideDisc, SideParams, NS, PHI_AF, RAD_S_PER_RPM, RPM_PER_RAD_S, W_A, W_F, W_L,
+};
+use crate::effects::{Effects, DELAY_CAPACITY};
+use crate::electrics::{connector, RateLimiter};
+use crate::outputs::{Channel as C, Outputs};
+use crate::params::{Params, SpeedTarget};
+use crate::profile::SetPoints;
+use crate::throttle;
+
+/// Smallest and largest step [µs] the model accepts.
+pub const DT_US_RANGE: (u32, u32) = (10, 10_000);
+
+/// Speed [rad/s, axle] over which the differential's Coulomb friction ramps up: a
+/// continuous friction model, as the thesis chooses for real-time use (5.3.1).
+const DIFF_FRICTION_EPS: f32 = 0.5;
+
+/// Everything fixed at construction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Config {
+    /// Step [µs]; 1000 is the bench rate, 100 must also work.
+    pub dt_us: u32,
+    /// Scalar parameters (rate set and coupling stiffness chosen in them).
+    pub params: Params,
+    /// Target speed from the identified map or from Max Speed.
+    pub speed_target: SpeedTarget,
+    /// Extra physical effects (all off by default).
+    pub effects: Effects,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            dt_us: 1000,
+            params: Params::default(),
+            speed_target: SpeedTarget::Map,
+            effects: Effects::NONE,
+        }
+    }
+}
+
+/// Why a configuration was rejected.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ConfigError {
+    /// Step outside [`DT_US_RANGE`].
+    StepSize(u32),
+    /// A physical parameter is not finite and positive where it must be.
+    Parameter(&'static str),
+    /// An effect has an invalid parameter; the effect's id.
+    Effect(&'static str),
+}
+
+/// Inputs of one step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Inputs {
+    /// Set points (signed %).
+    pub sp: SetPoints,
+    /// [V] DPU voltage set point (12..30 V on the bench).
+    pub supply_v: f32,
+}
+
+/// The model state: one fixed-size struct, no heap.
+#[derive(Debug, Clone)]
+pub struct Model<'a> {
+    maps: Maps<'a>,
+    p: Params,
+    fx: Effects,
+    mode: SpeedTarget,
+    dt_us: u32,
+    dt: f32,
+    side: [SideParams; 2],
+    disc: [SideDisc; 2],
+    r_conn: f32,
+    // --- state ---
+    x: [[f32; NS]; 2],
+    pid: Pid,
+    cmd_rpm: f32,
+    p_sut: RateLimiter,
+    p_load: [RateLimiter; 2],
+    delay: [f32; DELAY_CAPACITY],
+    delay_len: usize,
+    delay_pos: usize,
+    t_us: u64,
+}
+
+fn positive(v: f32) -> bool {
+    v.is_finite() && v > 0.0
+}
+
+impl Model<'static> {
+    /// A model on the maps compiled into the binary.
+    pub fn new(cfg: &Config) -> Result<Self, ConfigError> {
+        Model::with_maps(cfg, Maps::builtin())
+    }
+}
+
+impl<'a> Model<'a> {
+    /// A model on the given maps (identified maps loaded at run time on the host).
+    pub fn with_maps(cfg: &Config, maps: Maps<'a>) -> Result<Self, ConfigError> {
+        if cfg.dt_us < DT_US_RANGE.0 || cfg.dt_us > DT_US_RANGE.1 {
+            return Err(ConfigError::StepSize(cfg.dt_us));
+        }
+        cfg.effects.validate().map_err(ConfigError::Effect)?;
+        let p = &cfg.params;
+        let fx = &cfg.effects;
+        let checks: [(&'static str, f32); 9] = [
+            ("sut_inertia", p.sut_inertia),
+            ("load_inertia_l", p.load_inertia[0]),
+            ("load_inertia_r", p.load_inertia[1]),
+            ("flange_inertia", p.flange_inertia),
+            ("flange_stiffness", p.flange_stiffness),
+            ("coupling_stiffness", p.coupling_stiffness),
+            ("sut_gear_ratio", p.sut_gear_ratio),
+            ("typical_max_speed_rpm", p.typical_max_speed_rpm),
+            ("motor_torque_max_nm", p.motor_torque_max_nm),
+        ];
+        if let Some((name, _)) = checks.iter().find(|(_, v)| !positive(*v)) {
+            return Err(ConfigError::Parameter(name));
+        }
+        let dt_s = f64::from(cfg.dt_us) * 1e-6;
+        let k_c = fx.coupling_stiffness.unwrap_or(p.coupling_stiffness);
+        let c_c = fx.coupling_damping.unwrap_or(p.coupling_damping);
+        let mk = |i: usize| SideParams {
+            j_a: 0.5 * p.sut_inertia * fx.inertia_scale[0],
+            j_f: p.flange_inertia,
+            j_l: p.load_inertia[i] * fx.inertia_scale[i + 1],
+            k_f: p.flange_stiffness,
+            c_f: p.flange_damping,
+            k_c,
+            c_c,
+        };
+        let side = [mk(0), mk(1)];
+        let disc = [SideDisc::new(&side[0], dt_s), SideDisc::new(&side[1], dt_s)];
+        let delay_steps = (f64::from(fx.controller_delay_s) / dt_s + 0.5) as usize;
+        Ok(Self {
+            maps,
+            p: *p,
+            fx: *fx,
+            mode: cfg.speed_target,
+            dt_us: cfg.dt_us,
+            dt: dt_s as f32,
+            side,
+            disc,
+            r_conn: fx.connector_resistance.unwrap_or(p.connector_resistance),
+            x: [[0.0; NS]; 2],
+            pid: Pid::default(),
+            cmd_rpm: 0.0,
+            p_sut: RateLimiter::default(),
+            p_load: [RateLimiter::default(); 2],
+            delay: [0.0; DELAY_CAPACITY],
+            delay_len: delay_steps.min(DELAY_CAPACITY),
+            delay_pos: 0,
+            t_us: 0,
+        })
+    }
+
+    /// Step [µs].
+    pub fn dt_us(&self) -> u32 {
+        self.dt_us
+    }
+
+    /// Time reached [µs].
+    pub fn t_us(&self) -> u64 {
+        self.t_us
+    }
+
+    /// Parameters in use.
+    pub fn params(&self) -> &Params {
+        &self.p
+    }
+
+    /// Per-side mechanical parameters in use (after effects).
+    pub fn side_params(&self) -> &[SideParams; 2] {
+        &self.side
+    }
+
+    /// The throttle as the controller sees it, after the `controller_delay` effect.
+    fn delayed_throttle(&mut self, v: f32) -> f32 {
+        if self.delay_len == 0 {
+            return v;
+        }
+        let pos = self.delay_pos;
+        let out = self.delay.get(pos).copied().unwrap_or(v);
+        if let Some(slot) = self.delay.get_mut(pos) {
+            *slot = v;
+        }
+        self.delay_pos = if pos + 1 >= self.delay_len {
+            0
+        } else {
+            pos + 1
+        };
+        out
+    }
+
+    /// Advance one step with set points held over it; returns the outputs at the end.
+    pub fn step(&mut self, inp: &Inputs) -> Outputs {
+        let p = self.p;
+        let fx = self.fx;
+        let dt = self.dt;
+        let finite_pct = |v: f32| {
+            if v.is_finite() {
+                v.clamp(-100.0, 100.0)
+            } else {
+                0.0
+            }
+        };
+        let thr_sp = finite_pct(inp.sp.throttle_pct);
+        let load_sp = [
+            finite_pct(inp.sp.load_pct[0]),
+            finite_pct(inp.sp.load_pct[1]),
+        ];
+
+        // Throttle chain and Curtis rate logic.
+        let thr_ctl = self.delayed_throttle(thr_sp);
+        let mapped = self
+            .maps
+            .throttle_input
+            .eval(throttle::voltage(&p, thr_ctl));
+        let target = throttle::target_speed_rpm(&self.maps, &p, self.mode, mapped, thr_ctl);
+        let n = p.sut_gear_ratio;
+        let [xl, xr] = self.x;
+        let w_case = 0.5 * (xl[W_A] + xr[W_A]);
+        let w_motor = n * w_case;
+        let (rate, case) = curtis::ramp_rate(
+            &p,
+            &fx.inverter_rate_scale,
+            mapped,
+            target,
+            self.cmd_rpm,
+            w_motor * RPM_PER_RAD_S,
+        );
+        self.cmd_rpm = curtis::advance(self.cmd_rpm, target, rate, dt);
+
+        // Speed controller -> motor torque -> gearbox -> open differential.
+        let t_motor = self
+            .pid
+            .update(&p, self.cmd_rpm * RAD_S_PER_RPM, w_motor, dt);
+        let df = fx.differential_friction;
+        let t_diff = df.coulomb_nm * (w_case / DIFF_FRICTION_EPS).clamp(-1.0, 1.0)
+            + df.viscous_nm_s * w_case;
+        let t_in = 0.5 * (n * t_motor - t_diff);
+
+        // Per side: friction and load motor at the load node, exact linear update.
+        let fade = p.regen_fade_rpm * RAD_S_PER_RPM;
+        let drive_dir = if thr_sp < 0.0 { -1.0 } else { 1.0 };
+        let mut t_load = [0.0f32; 2];
+        for (i, ((x, disc), tl)) in self
+            .x
+            .iter_mut()
+            .zip(self.disc.iter())
+            .zip(t_load.iter_mut())
+            .enumerate()
+        {
+            let w_l = x[W_L];
+            let fric = self.maps.friction[i].eval(w_l * RPM_PER_RAD_S) * fx.axle_friction_scale[i];
+            let t_map = self.maps.load_torque[i].eval(thr_sp, load_sp[i]);
+            // Regenerating torque brakes whatever way the shaft turns and fades out near
+            // standstill (nothing left to regenerate); motoring drives in the run direction.
+            *tl = if t_map >= 0.0 {
+                t_map
+                    * (if fade > 0.0 {
+                        (w_l / fade).clamp(-1.0, 1.0)
+                    } else {
+                        0.0
+                    })
+            } else {
+                t_map * drive_dir
+            };
+            *x = disc.step(x, [t_in, fric + *tl]);
+        }
+
+        // Electrics: maps -> rate limiters -> currents; supply current is the sum.
+        let load_mean = 0.5 * (load_sp[0] + load_sp[1]);
+        let regen = |pw: f32| {
+            if pw < 0.0 {
+                pw * (1.0 - fx.regen_loss)
+            } else {
+                pw
+            }
+        };
+        let p_sut = regen(self.p_sut.update(
+            self.maps.sut_power.eval(thr_sp, load_mean),
+            p.sut_power_rate_w_per_s * dt,
+        ));
+        let mut p_ld = [0.0f32; 2];
+        for ((pl, lim), (tab, lsp)) in p_ld
+            .iter_mut()
+            .zip(self.p_load.iter_mut())
+            .zip(self.maps.load_power.iter().zip(load_sp.iter()))
+        {
+            *pl = regen(lim.update(tab.eval(thr_sp, *lsp), p.load_power_rate_w_per_s * dt));
+        }
+        let v_s = inp.supply_v;
+        let mut v_b = v_s;
+        let mut sol = (0.0f32, 0.0f32, 0.0f32);
+        let mut i_ld = [0.0f32; 2];
+        let passes = if fx.supply_resistance > 0.0 { 6 } else { 1 };
+        for _ in 0..passes {
+            sol = connector(p_sut, v_b, self.r_conn);
+            i_ld = if v_b > 0.0 {
+                [p_ld[0] / v_b, p_ld[1] / v_b]
+            } else {
+                [0.0, 0.0]
+            };
+            let i_sum = sol.0 + i_ld[0] + i_ld[1];
+            v_b = v_s - fx.supply_resistance * i_sum;
+        }
+        if passes > 1 {
+            // Final pass at the converged busbar voltage, so all currents share one V.
+            sol = connector(p_sut, v_b, self.r_conn);
+            i_ld = if v_b > 0.0 {
+                [p_ld[0] / v_b, p_ld[1] / v_b]
+            } else {
+                [0.0, 0.0]
+            };
+        }
+        let (i_dc, v_dc, _) = sol;
+
+        self.t_us += u64::from(self.dt_us);
+        self.outputs(
+            thr_sp, load_sp, mapped, target, case, t_motor, t_load, v_b, i_dc, v_dc, i_ld,
+        )
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn outputs(
+        &self,
+        thr_sp: f32,
+        load_sp: [f32; 2],
+        mapped: f32,
+        target: f32,
+        case: RateCase,
+        t_motor: f32,
+        t_load: [f32; 2],
+        v_b: f32,
+        i_dc: f32,
+        v_dc: f32,
+        i_ld: [f32; 2],
+    ) -> Outputs {
+        let p = &self.p;
+        let fx = &self.fx;
+        let [xl, xr] = self.x;
+        let flange = |x: &[f32; NS], s: &SideParams| s.k_f * x[PHI_AF] + s.c_f * (x[W_A] - x[W_F]);
+        let [sl, sr] = &self.side;
+        let tq = [flange(&xl, sl), flange(&xr, sr)];
+        let sg = fx.speed_sensor_gain;
+        let cg = fx.current_sensor_gain;
+        let motor_rpm = p.sut_gear_ratio * 0.5 * (xl[W_A] + xr[W_A]) * RPM_PER_RAD_S;
+
+        let c_l = tq[0] * fx.torque_sensor_gain[0] + fx.torque_sensor_offset[0];
+        let c_r = tq[1] * fx.torque_sensor_gain[1] + fx.torque_sensor_offset[1];
+        let t_l = xl[W_F] * RPM_PER_RAD_S * sg[1];
+        let t_r = xr[W_F] * RPM_PER_RAD_S * sg[2];
+        let i_dpu = (i_dc + i_ld[0] + i_ld[1]) * cg[0];
+        let i_dc_m = i_dc * cg[1];
+        let i_xlml = 0.5 * i_ld[0] * cg[2];
+        let i_xlmr = 0.5 * i_ld[1] * cg[3];
+
+        let mut o = Outputs {
+            t_us: self.t_us,
+            ..Outputs::default()
+        };
+        o.set(C::Throttle, throttle::voltage(p, thr_sp));
+        o.set(C::SuTMotorEnc, motor_rpm * sg[0]);
+        o.set(C::CKistlerL, c_l);
+        o.set(C::CKistlerR, c_r);
+        o.set(C::TKistlerL, t_l);
+        o.set(C::TKistlerR, t_r);
+        o.set(C::SiemensEnc, xr[W_L] * RPM_PER_RAD_S * sg[3]);
+        o.set(C::IXlml22, i_xlml);
+        o.set(C::IXlmlBu1, i_xlml);
+        o.set(C::IXlmr23, i_xlmr);
+        o.set(C::IDpu27, i_dpu);
+        o.set(C::VDcBusbars, v_b);
+        o.set(C::IDc, i_dc_m);
+        o.set(C::VDc, v_dc);
+        // Derived exactly as the thesis computes them from the measured channels (5.13).
+        o.set(C::PDpu, v_b * i_dpu);
+        o.set(C::PSutInv, v_dc * i_dc_m);
+        o.set(C::PLml, (i_xlml + i_xlml) * v_b);
+        o.set(C::PLmr, 2.0 * i_xlmr * v_b);
+        o.set(C::PConn, (v_b - v_dc) * i_dc_m);
+        o.set(C::TorqueTot, 0.5 * (c_l + c_r));
+        o.set(C::TorqueDiff, c_l - c_r);
+        o.set(C::SpeedTot, 0.5 * (t_l + t_r));
+        o.set(C::SpeedDiff, t_l - t_r);
+        o.set(C::ThrottleSp, thr_sp);
+        o.set(C::LoadLSp, load_sp[0]);
+        o.set(C::LoadRSp, load_sp[1]);
+        o.set(C::ThrottleMapped, mapped);
+        o.set(C::SpeedTarget, target);
+        o.set(C::SpeedCmd, self.cmd_rpm);
+        o.set(C::RateCase, f32::from(case as u8));
+        o.set(C::SuTTorque, t_motor);
+        o.set(C::LoadTorqueL, t_load[0]);
+        o.set(C::LoadTorqueR, t_load[1]);
+        o.set(
+            C::ILmlPhase,
+            self.maps.load_current[0].eval(thr_sp, load_sp[0]),
+        );
+        o.set(
+            C::ILmrPhase,
+            self.maps.load_current[1].eval(thr_sp, load_sp[1]),
+        );
+        o.set(C::LoadSpeedL, xl[W_L] * RPM_PER_RAD_S * p.load_gear_ratio);
+        o.set(C::LoadSpeedR, xr[W_L] * RPM_PER_RAD_S * p.load_gear_ratio);
+        o
+    }
+}

@@ -1,0 +1,217 @@
+//! Scalar parameters, with the thesis values (from `data/parameters.toml`) as defaults.
+
+use crate::data as d;
+
+/// Which Curtis rate parameter set drives the rate logic (thesis tables 5.16 / 5.17).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum RateSet {
+    /// What is programmed into the controller: what a user starts from.
+    Programmed,
+    /// What the bench was measured to do.
+    Identified,
+}
+
+/// How the mapped throttle becomes a target speed (thesis 5.2.1 and 6.1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SpeedTarget {
+    /// Identified 1-D map (the thesis default, fig. 5.7).
+    Map,
+    /// Mapped fraction x Max Speed, then the measured limits (fig. 6.3).
+    Parameter,
+}
+
+/// Which coupling stiffness (thesis table 5.10).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum CouplingStiffness {
+    /// 4369.434 N m/rad, identified.
+    Identified,
+    /// 10310 N m/rad, Flender datasheet.
+    Datasheet,
+}
+
+/// Curtis rate parameters of one direction, in seconds per Typical Max Speed, and the
+/// HS/LS thresholds in percent of Typical Max Speed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DirectionRates {
+    pub hs_pct: f32,
+    pub ls_pct: f32,
+    pub accel_hs_s: f32,
+    pub accel_ls_s: f32,
+    pub low_accel_s: f32,
+    pub neutral_decel_hs_s: f32,
+    pub neutral_decel_ls_s: f32,
+    pub partial_decel_s: f32,
+}
+
+/// Rate parameters for both directions: `[forward, reverse]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RateParams {
+    pub dir: [DirectionRates; 2],
+}
+
+impl RateParams {
+    /// Table 5.16.
+    pub const PROGRAMMED: Self = Self {
+        dir: [
+            DirectionRates {
+                hs_pct: d::PROG_HS_FWD_PCT,
+                ls_pct: d::PROG_LS_FWD_PCT,
+                accel_hs_s: d::PROG_ACCEL_HS_FWD_S,
+                accel_ls_s: d::PROG_ACCEL_LS_FWD_S,
+                low_accel_s: d::PROG_LOW_ACCEL_FWD_S,
+                neutral_decel_hs_s: d::PROG_NEUTRAL_DECEL_HS_FWD_S,
+                neutral_decel_ls_s: d::PROG_NEUTRAL_DECEL_LS_FWD_S,
+                partial_decel_s: d::PROG_PARTIAL_DECEL_FWD_S,
+            },
+            DirectionRates {
+                hs_pct: d::PROG_HS_REV_PCT,
+                ls_pct: d::PROG_LS_REV_PCT,
+                accel_hs_s: d::PROG_ACCEL_HS_REV_S,
+                accel_ls_s: d::PROG_ACCEL_LS_REV_S,
+                low_accel_s: d::PROG_LOW_ACCEL_REV_S,
+                neutral_decel_hs_s: d::PROG_NEUTRAL_DECEL_HS_REV_S,
+                neutral_decel_ls_s: d::PROG_NEUTRAL_DECEL_LS_REV_S,
+                partial_decel_s: d::PROG_PARTIAL_DECEL_REV_S,
+            },
+        ],
+    };
+
+    /// Table 5.17.
+    pub const IDENTIFIED: Self = Self {
+        dir: [
+            DirectionRates {
+                hs_pct: d::IDENT_HS_FWD_PCT,
+                ls_pct: d::IDENT_LS_FWD_PCT,
+                accel_hs_s: d::IDENT_ACCEL_HS_FWD_S,
+                accel_ls_s: d::IDENT_ACCEL_LS_FWD_S,
+                low_accel_s: d::IDENT_LOW_ACCEL_FWD_S,
+                neutral_decel_hs_s: d::IDENT_NEUTRAL_DECEL_HS_FWD_S,
+                neutral_decel_ls_s: d::IDENT_NEUTRAL_DECEL_LS_FWD_S,
+                partial_decel_s: d::IDENT_PARTIAL_DECEL_FWD_S,
+            },
+            DirectionRates {
+                hs_pct: d::IDENT_HS_REV_PCT,
+                ls_pct: d::IDENT_LS_REV_PCT,
+                accel_hs_s: d::IDENT_ACCEL_HS_REV_S,
+                accel_ls_s: d::IDENT_ACCEL_LS_REV_S,
+                low_accel_s: d::IDENT_LOW_ACCEL_REV_S,
+                neutral_decel_hs_s: d::IDENT_NEUTRAL_DECEL_HS_REV_S,
+                neutral_decel_ls_s: d::IDENT_NEUTRAL_DECEL_LS_REV_S,
+                partial_decel_s: d::IDENT_PARTIAL_DECEL_REV_S,
+            },
+        ],
+    };
+
+    /// The set named by `which`.
+    pub const fn of(which: RateSet) -> Self {
+        match which {
+            RateSet::Programmed => Self::PROGRAMMED,
+            RateSet::Identified => Self::IDENTIFIED,
+        }
+    }
+}
+
+/// Every scalar of the model. Defaults come from `data/parameters.toml`; units in the
+/// field docs; mechanical values in the axle frame unless named `motor`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Params {
+    /// [V/%] throttle volts per set-point percent.
+    pub throttle_volts_per_pct: f32,
+    /// [rpm] Max Speed Fwd / Rev (parameter approach).
+    pub max_speed_rpm: [f32; 2],
+    /// [rpm] Typical Max Speed: rates are normalised to it.
+    pub typical_max_speed_rpm: f32,
+    /// [rpm] measured speed limits Fwd / Rev.
+    pub speed_limit_rpm: [f32; 2],
+    /// [%] mapped throttle above which acceleration is "full throttle".
+    pub full_throttle_pct: f32,
+    /// [%] mapped throttle below which acceleration is "low".
+    pub low_throttle_pct: f32,
+    /// Curtis rates.
+    pub rates: RateParams,
+    /// [N m/(rad/s)], [N m/rad], [N m s/rad] PID gains, motor frame.
+    pub pid_kp: f32,
+    pub pid_ki: f32,
+    pub pid_kd: f32,
+    /// [s] derivative filter.
+    pub pid_d_filter_s: f32,
+    /// [N m] motor torque limit, motor frame.
+    pub motor_torque_max_nm: f32,
+    /// [W] motor mechanical power limit.
+    pub motor_power_max_w: f32,
+    /// [-] SuT gearbox ratio (motor / axle speed).
+    pub sut_gear_ratio: f32,
+    /// [-] load gearbox ratio (load motor / axle speed), reporting only.
+    pub load_gear_ratio: f32,
+    /// [kg m^2] total SuT-side inertia, split in halves.
+    pub sut_inertia: f32,
+    /// [kg m^2] load inertias L, R.
+    pub load_inertia: [f32; 2],
+    /// [kg m^2] torque flange inertia.
+    pub flange_inertia: f32,
+    /// [N m/rad] torque flange stiffness.
+    pub flange_stiffness: f32,
+    /// [N m s/rad] torque flange damping.
+    pub flange_damping: f32,
+    /// [N m/rad] flexible coupling stiffness.
+    pub coupling_stiffness: f32,
+    /// [N m s/rad] flexible coupling damping.
+    pub coupling_damping: f32,
+    /// [rpm] axle speed below which a regenerating load's torque fades out.
+    pub regen_fade_rpm: f32,
+    /// [ohm] busbar-to-SuT-inverter connector resistance.
+    pub connector_resistance: f32,
+    /// [W/s] SuT inverter power rate limit.
+    pub sut_power_rate_w_per_s: f32,
+    /// [W/s] load power rate limit.
+    pub load_power_rate_w_per_s: f32,
+}
+
+impl Params {
+    /// The thesis values, with the given rate set and coupling stiffness.
+    pub const fn thesis(rates: RateSet, coupling: CouplingStiffness) -> Self {
+        Self {
+            throttle_volts_per_pct: d::THROTTLE_VOLTS_PER_PCT,
+            max_speed_rpm: [d::MAX_SPEED_FWD_RPM, d::MAX_SPEED_REV_RPM],
+            typical_max_speed_rpm: d::TYPICAL_MAX_SPEED_RPM,
+            speed_limit_rpm: [d::SPEED_LIMIT_FWD_RPM, d::SPEED_LIMIT_REV_RPM],
+            full_throttle_pct: d::FULL_THROTTLE_PCT,
+            low_throttle_pct: d::LOW_THROTTLE_PCT,
+            rates: RateParams::of(rates),
+            pid_kp: d::PID_KP,
+            pid_ki: d::PID_KI,
+            pid_kd: d::PID_KD,
+            pid_d_filter_s: d::PID_D_FILTER_S,
+            motor_torque_max_nm: d::MOTOR_TORQUE_MAX_NM,
+            motor_power_max_w: d::MOTOR_POWER_MAX_W,
+            sut_gear_ratio: d::SUT_GEAR_RATIO,
+            load_gear_ratio: d::LOAD_GEAR_RATIO,
+            sut_inertia: d::SUT_INERTIA,
+            load_inertia: [d::LOAD_INERTIA_L, d::LOAD_INERTIA_R],
+            flange_inertia: d::FLANGE_INERTIA,
+            flange_stiffness: d::FLANGE_STIFFNESS,
+            flange_damping: d::FLANGE_DAMPING,
+            coupling_stiffness: match coupling {
+                CouplingStiffness::Identified => d::COUPLING_STIFFNESS_IDENTIFIED,
+                CouplingStiffness::Datasheet => d::COUPLING_STIFFNESS_DATASHEET,
+            },
+            coupling_damping: d::COUPLING_DAMPING,
+            regen_fade_rpm: d::REGEN_FADE_RPM,
+            connector_resistance: d::CONNECTOR_RESISTANCE,
+            sut_power_rate_w_per_s: d::SUT_POWER_RATE_W_PER_S,
+            load_power_rate_w_per_s: d::LOAD_POWER_RATE_W_PER_S,
+        }
+    }
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Self::thesis(RateSet::Identified, CouplingStiffness::Identified)
+    }
+}

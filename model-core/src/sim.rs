@@ -1,0 +1,72 @@
+//! A model driven by a test profile: what the firmware's basic mode and `simrod
+//! simulate` both run.
+
+use crate::model::{Config, ConfigError, Inputs, Model};
+use crate::outputs::Outputs;
+use crate::profile::Profile;
+
+/// Model + profile + supply voltage.
+#[derive(Debug, Clone)]
+pub struct Simulation<'a> {
+    model: Model<'a>,
+    profile: Profile,
+    supply_v: f32,
+}
+
+impl Simulation<'static> {
+    /// On the built-in maps.
+    pub fn new(cfg: &Config, profile: Profile, supply_v: f32) -> Result<Self, ConfigError> {
+        Ok(Self {
+            model: Model::new(cfg)?,
+            profile,
+            supply_v,
+        })
+    }
+}
+
+impl<'a> Simulation<'a> {
+    /// On a model built by the caller (e.g. with run-time maps).
+    pub fn from_model(model: Model<'a>, profile: Profile, supply_v: f32) -> Self {
+        Self {
+            model,
+            profile,
+            supply_v,
+        }
+    }
+
+    /// Number of steps that cover the profile.
+    pub fn total_steps(&self) -> u64 {
+        self.profile
+            .duration_us()
+            .div_ceil(u64::from(self.model.dt_us()))
+    }
+
+    /// The inputs applied at the current time.
+    pub fn inputs(&self) -> Inputs {
+        Inputs {
+            sp: self.profile.at(self.model.t_us()),
+            supply_v: self.supply_v,
+        }
+    }
+
+    /// One step; `None` once the profile is over.
+    pub fn step(&mut self) -> Option<Outputs> {
+        if self.model.t_us() >= self.profile.duration_us() {
+            return None;
+        }
+        let inp = self.inputs();
+        Some(self.model.step(&inp))
+    }
+
+    /// The model.
+    pub fn model(&self) -> &Model<'a> {
+        &self.model
+    }
+}
+
+impl Iterator for Simulation<'_> {
+    type Item = Outputs;
+    fn next(&mut self) -> Option<Outputs> {
+        self.step()
+    }
+}
