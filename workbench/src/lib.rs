@@ -2,3 +2,5 @@
 //!
 //! Modules are grouped by what they do for the user; `main.rs` only parses arguments
 //! and dispatches.
+
+pub mod measure;
