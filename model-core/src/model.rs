@@ -110,7 +110,7 @@ impl<'a> Model<'a> {
         cfg.effects.validate().map_err(ConfigError::Effect)?;
         let p = &cfg.params;
         let fx = &cfg.effects;
-        let checks: [(&'static str, f32); 9] = [
+        let checks: [(&'static str, f32); 10] = [
             ("sut_inertia", p.sut_inertia),
             ("load_inertia_l", p.load_inertia[0]),
             ("load_inertia_r", p.load_inertia[1]),
@@ -120,6 +120,10 @@ impl<'a> Model<'a> {
             ("sut_gear_ratio", p.sut_gear_ratio),
             ("typical_max_speed_rpm", p.typical_max_speed_rpm),
             ("motor_torque_max_nm", p.motor_torque_max_nm),
+            (
+                "load_no_load_rpm (must exceed load_base_rpm)",
+                p.load_no_load_rpm - p.load_base_rpm,
+            ),
         ];
         if let Some((name, _)) = checks.iter().find(|(_, v)| !positive(*v)) {
             return Err(ConfigError::Parameter(name));
@@ -271,7 +275,12 @@ impl<'a> Model<'a> {
                         0.0
                     })
             } else {
-                t_map * drive_dir
+                // Motoring: as mapped up to the base speed, then fading linearly to zero
+                // at the no-load speed in the direction it drives (back-EMF meets the
+                // supply). Bounds what one motoring load can do through the open diff.
+                let along = w_l * drive_dir * p.load_gear_ratio * RPM_PER_RAD_S;
+                let span = p.load_no_load_rpm - p.load_base_rpm;
+                t_map * drive_dir * ((p.load_no_load_rpm - along) / span).clamp(0.0, 1.0)
             };
             *x = disc.step(x, [t_in, fric + *tl]);
         }

@@ -163,6 +163,11 @@ pub struct Params {
     pub coupling_stiffness: f32,
     /// [N m s/rad] flexible coupling damping.
     pub coupling_damping: f32,
+    /// [rpm] load motor shaft speed where its motoring torque has faded to zero
+    /// (back-EMF reaches the supply): bounds what a motoring load can drive.
+    pub load_no_load_rpm: f32,
+    /// [rpm] load motor shaft speed up to which the motoring torque is as mapped.
+    pub load_base_rpm: f32,
     /// [rpm] axle speed below which a regenerating load's torque fades out.
     pub regen_fade_rpm: f32,
     /// [ohm] busbar-to-SuT-inverter connector resistance.
@@ -202,6 +207,8 @@ impl Params {
                 CouplingStiffness::Datasheet => d::COUPLING_STIFFNESS_DATASHEET,
             },
             coupling_damping: d::COUPLING_DAMPING,
+            load_no_load_rpm: d::LOAD_NO_LOAD_RPM,
+            load_base_rpm: d::LOAD_BASE_RPM,
             regen_fade_rpm: d::REGEN_FADE_RPM,
             connector_resistance: d::CONNECTOR_RESISTANCE,
             sut_power_rate_w_per_s: d::SUT_POWER_RATE_W_PER_S,

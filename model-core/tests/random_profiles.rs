@@ -1,0 +1,143 @@
+//! Property test: random valid profiles over the whole set-point range, 60 s simulated,
+//! never produce NaN/inf and never leave physical bounds, at 1 ms and at 100 µs.
+
+use model_core::*;
+use proptest::prelude::*;
+
+fn mode() -> impl Strategy<Value = SetMode> {
+    prop_oneof![Just(SetMode::Hold), Just(SetMode::Interpolate)]
+}
+
+fn set() -> impl Strategy<Value = ProfileSet> {
+    (
+        0.2f32..15.0,
+        -100.0f32..=100.0,
+        -100.0f32..=100.0,
+        -100.0f32..=100.0,
+        mode(),
+        mode(),
+    )
+        .prop_map(
+            |(duration_s, throttle_pct, load_l_pct, load_r_pct, throttle_mode, load_mode)| {
+                ProfileSet {
+                    duration_s,
+                    throttle_pct,
+                    load_l_pct,
+                    load_r_pct,
+                    throttle_mode,
+                    load_mode,
+                }
+            },
+        )
+}
+
+fn scenario() -> impl Strategy<Value = (Vec<ProfileSet>, f32, f32, f32, bool, bool)> {
+    (
+        prop::collection::vec(set(), 1..=profile::MAX_SETS),
+        -1.5f32..=1.5,
+        -1.5f32..=1.5,
+        12.0f32..=30.0,
+        any::<bool>(),
+        any::<bool>(),
+    )
+}
+
+/// Bounds every physically meaningful run must respect (see the test name).
+fn check(o: &Outputs, supply_v: f32, p: &Params) -> Result<(), String> {
+    for c in Channel::ALL {
+        let v = o.get(*c);
+        if !v.is_finite() {
+            return Err(format!("{} = {v} at t={}", c.name(), o.t_s()));
+        }
+    }
+    let axle_max = 2.0 * p.speed_limit_rpm[0] / p.sut_gear_ratio + 40.0; // open diff: one side may take all
+    let bounds: [(Channel, f32); 10] = [
+        // A speed-controlled motor overshoots its target when the loads drop at once
+        // (a full regenerating load of ~160 N m at the axle released in one step gives
+        // ~+5 %); the controller must keep even that within 25 % of the limit.
+        (Channel::SuTMotorEnc, 1.25 * p.speed_limit_rpm[0]),
+        (Channel::TKistlerL, axle_max),
+        (Channel::TKistlerR, axle_max),
+        (Channel::SiemensEnc, axle_max),
+        (Channel::SuTTorque, p.motor_torque_max_nm),
+        (Channel::CKistlerL, 400.0),
+        (Channel::CKistlerR, 400.0),
+        (Channel::IDc, supply_v / (2.0 * p.connector_resistance)),
+        (Channel::IDpu27, 1000.0),
+        (Channel::Throttle, 5.0),
+    ];
+    for (c, b) in bounds {
+        let v = o.get(c);
+        if v.abs() > b {
+            return Err(format!(
+                "|{}| = {} > {b} at t={}",
+                c.name(),
+                v.abs(),
+                o.t_s()
+            ));
+        }
+    }
+    let vdc = o.get(Channel::VDc);
+    if !(vdc > 0.0 && vdc < supply_v + 5.0) {
+        return Err(format!(
+            "V_DC = {vdc} outside (0, {}) at t={}",
+            supply_v + 5.0,
+            o.t_s()
+        ));
+    }
+    Ok(())
+}
+
+fn run_60s(
+    dt_us: u32,
+    sc: &(Vec<ProfileSet>, f32, f32, f32, bool, bool),
+) -> Result<(), TestCaseError> {
+    let (sets, ts, ls, supply_v, programmed, parameter) = sc;
+    let params = Params::thesis(
+        if *programmed {
+            RateSet::Programmed
+        } else {
+            RateSet::Identified
+        },
+        CouplingStiffness::Identified,
+    );
+    let speed_target = if *parameter {
+        SpeedTarget::Parameter
+    } else {
+        SpeedTarget::Map
+    };
+    let cfg = Config {
+        dt_us,
+        params,
+        speed_target,
+        effects: Effects::NONE,
+    };
+    let profile = Profile::new(sets, *ts, *ls).expect("generated profiles are valid");
+    let mut model = Model::new(&cfg).expect("valid config");
+    let steps = 60_000_000 / u64::from(dt_us);
+    for _ in 0..steps {
+        let inp = Inputs {
+            sp: profile.at(model.t_us()),
+            supply_v: *supply_v,
+        };
+        let o = model.step(&inp);
+        check(&o, *supply_v, &params).map_err(TestCaseError::fail)?;
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+    #[test]
+    fn random_profiles_stay_physical_at_1ms(sc in scenario()) {
+        run_60s(1000, &sc)?;
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 6, ..ProptestConfig::default() })]
+    #[test]
+    fn random_profiles_stay_physical_at_100us(sc in scenario()) {
+        run_60s(100, &sc)?;
+    }
+}
