@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Every test of the project, from a clean checkout: installs what it needs first.
+# Used by CI (.ci/run) and by developers alike.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+step() { printf '\n==> %s\n' "$*"; }
+as_root() { if [ "$(id -u)" = 0 ]; then "$@"; else sudo "$@"; fi; }
+
+step "set-up: Cortex-M4F target and QEMU"
+rustup target list --installed | grep -qx thumbv7em-none-eabihf || rustup target add thumbv7em-none-eabihf
+if ! command -v qemu-system-arm >/dev/null; then
+  as_root apt-get update -qq
+  as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq qemu-system-arm
+fi
+rustup component list --installed | grep -q '^rustfmt' || rustup component add rustfmt
+
+step "format"
+cargo fmt --all -- --check
+
+step "model-core builds for the target without std or alloc"
+cargo build -p model-core --target thumbv7em-none-eabihf
+cargo build -p model-core --target thumbv7em-none-eabihf --features defmt
+
+step "firmware builds"
+cargo build -p firmware --release --target thumbv7em-none-eabihf
+
+step "all host tests (model, workbench, firmware under QEMU, reference accuracy)"
+cargo test
