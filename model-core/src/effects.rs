@@ -15,6 +15,40 @@ pub struct DifferentialFriction {
     pub viscous_nm_s: f32,
 }
 
+/// Stribeck friction: extra friction at low axle speed on both half shafts, decaying
+/// as `exp(-(w/w_s)^2)` (a shape the thesis's cubic/linear friction map cannot make).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StribeckFriction {
+    /// [N m] extra torque at (near) zero speed, per side.
+    pub peak_nm: f32,
+    /// [rpm] axle speed over which it decays.
+    pub speed_rpm: f32,
+}
+
+/// Connector resistance that drifts with its temperature over a run:
+/// `R = R0 (1 + alpha dT)`, `tau d(dT)/dt = -dT + G I^2 R`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ConnectorDrift {
+    /// [1/K] temperature coefficient of resistance (copper: 0.0039).
+    pub alpha_per_k: f32,
+    /// [K/W] steady temperature rise per watt dissipated in the connector.
+    pub k_per_w: f32,
+    /// [s] thermal time constant.
+    pub time_constant_s: f32,
+}
+
+/// Free play in the SuT gearbox: the motor (a share of the SuT inertia) separates from
+/// the differential when the transmitted torque reverses, crosses the gap freely and
+/// re-engages with an inelastic impact.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct GearBacklash {
+    /// [deg] total free play, axle frame (at the differential case).
+    pub backlash_deg: f32,
+}
+
 /// The effect library. `Effects::NONE` is the thesis model.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -49,6 +83,13 @@ pub struct Effects {
     pub speed_sensor_gain: [f32; 4],
     /// `current_sensor_gain`: [-] multiplies I_DPU 2.7, I_DC, the two I_XLML probes, I_XLMR 2.3.
     pub current_sensor_gain: [f32; 4],
+    /// `gear_backlash`: free play in the SuT gearbox.
+    pub gear_backlash: GearBacklash,
+    /// `stribeck_friction`: low-speed friction peak (not in the diagnose library).
+    pub stribeck_friction: StribeckFriction,
+    /// `connector_resistance_drift`: thermal drift of the connector (not in the
+    /// diagnose library).
+    pub connector_drift: ConnectorDrift,
 }
 
 /// Longest controller delay in steps (1.6 KiB of state): 0.4 s at 1 ms, 40 ms at 100 µs.
@@ -58,6 +99,30 @@ pub const DELAY_CAPACITY: usize = 400;
 pub const EFFECT_IDS: &[&str] = &[
     "differential_friction",
     "axle_friction_scale",
+    "controller_delay",
+    "inverter_rate_scale",
+    "coupling_stiffness",
+    "coupling_damping",
+    "inertia_scale",
+    "connector_resistance",
+    "supply_resistance",
+    "regen_efficiency",
+    "torque_sensor_offset",
+    "torque_sensor_gain",
+    "speed_sensor_gain",
+    "current_sensor_gain",
+    "gear_backlash",
+    "stribeck_friction",
+    "connector_resistance_drift",
+];
+
+/// The effects `simrod diagnose` may propose. `stribeck_friction` and
+/// `connector_resistance_drift` are deliberately left out: the virtual bench uses them to
+/// prove that diagnose reports what its library cannot explain instead of guessing.
+pub const LIBRARY: &[&str] = &[
+    "differential_friction",
+    "axle_friction_scale",
+    "gear_backlash",
     "controller_delay",
     "inverter_rate_scale",
     "coupling_stiffness",
@@ -92,6 +157,16 @@ impl Effects {
         torque_sensor_gain: [1.0, 1.0],
         speed_sensor_gain: [1.0; 4],
         current_sensor_gain: [1.0; 4],
+        gear_backlash: GearBacklash { backlash_deg: 0.0 },
+        stribeck_friction: StribeckFriction {
+            peak_nm: 0.0,
+            speed_rpm: 0.0,
+        },
+        connector_drift: ConnectorDrift {
+            alpha_per_k: 0.0,
+            k_per_w: 0.0,
+            time_constant_s: 0.0,
+        },
     };
 
     /// True when every effect is off.
@@ -160,6 +235,22 @@ impl Effects {
         if !self.current_sensor_gain.iter().all(|v| pos(*v)) {
             return Err("current_sensor_gain");
         }
+        let b = self.gear_backlash.backlash_deg;
+        if !(fin(b) && (0.0..=30.0).contains(&b)) {
+            return Err("gear_backlash");
+        }
+        let st = &self.stribeck_friction;
+        if !(fin(st.peak_nm) && st.peak_nm >= 0.0 && (st.peak_nm == 0.0 || pos(st.speed_rpm))) {
+            return Err("stribeck_friction");
+        }
+        let cd = &self.connector_drift;
+        if !(fin(cd.alpha_per_k)
+            && fin(cd.k_per_w)
+            && cd.k_per_w >= 0.0
+            && (cd.k_per_w == 0.0 || pos(cd.time_constant_s)))
+        {
+            return Err("connector_resistance_drift");
+        }
         Ok(())
     }
 }
@@ -205,6 +296,12 @@ pub const EFFECT_PARAMS: &[(&str, &[&str])] = &[
         &["sut_motor", "flange_l", "flange_r", "siemens"],
     ),
     ("current_sensor_gain", &["dpu", "dc", "xlml", "xlmr"]),
+    ("gear_backlash", &["backlash_deg"]),
+    ("stribeck_friction", &["peak_nm", "speed_rpm"]),
+    (
+        "connector_resistance_drift",
+        &["alpha_per_k", "k_per_w", "time_constant_s"],
+    ),
 ];
 
 impl Effects {
@@ -259,6 +356,16 @@ impl Effects {
             ("current_sensor_gain", "dc") => Some(&mut self.current_sensor_gain[1]),
             ("current_sensor_gain", "xlml") => Some(&mut self.current_sensor_gain[2]),
             ("current_sensor_gain", "xlmr") => Some(&mut self.current_sensor_gain[3]),
+            ("gear_backlash", "backlash_deg") => Some(&mut self.gear_backlash.backlash_deg),
+            ("stribeck_friction", "peak_nm") => Some(&mut self.stribeck_friction.peak_nm),
+            ("stribeck_friction", "speed_rpm") => Some(&mut self.stribeck_friction.speed_rpm),
+            ("connector_resistance_drift", "alpha_per_k") => {
+                Some(&mut self.connector_drift.alpha_per_k)
+            }
+            ("connector_resistance_drift", "k_per_w") => Some(&mut self.connector_drift.k_per_w),
+            ("connector_resistance_drift", "time_constant_s") => {
+                Some(&mut self.connector_drift.time_constant_s)
+            }
             _ => return Err(EffectKeyError::UnknownParameter(names)),
         };
         if let Some(s) = slot {

@@ -29,6 +29,7 @@
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 
+pub mod backlash;
 pub mod controller;
 pub mod curtis;
 pub mod data;

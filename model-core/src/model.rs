@@ -1,5 +1,6 @@
 //! The twin: configuration, state, and the fixed-step `step`.
 
+use crate::backlash::Backlash;
 use crate::controller::Pid;
 use crate::curtis::{self, RateCase};
 use crate::data::Maps;
@@ -77,7 +78,11 @@ pub struct Model<'a> {
     dt: f32,
     side: [SideParams; 2],
     disc: [SideDisc; 2],
+    /// Discretization with the motor share removed (gears apart); only with backlash.
+    disc_free: [SideDisc; 2],
     r_conn: f32,
+    /// Backward-Euler weight of the connector's thermal lag (0: no drift).
+    drift_weight: f32,
     // --- state ---
     x: [[f32; NS]; 2],
     pid: Pid,
@@ -88,6 +93,9 @@ pub struct Model<'a> {
     delay_len: usize,
     delay_pos: usize,
     t_us: u64,
+    backlash: Backlash,
+    /// [K] connector temperature rise (`connector_resistance_drift`).
+    conn_dtemp: f32,
 }
 
 fn positive(v: f32) -> bool {
@@ -142,6 +150,30 @@ impl<'a> Model<'a> {
         };
         let side = [mk(0), mk(1)];
         let disc = [SideDisc::new(&side[0], dt_s), SideDisc::new(&side[1], dt_s)];
+        // Backlash: the motor share of the SuT inertia can part from the differential.
+        let gap_rad = fx.gear_backlash.backlash_deg * (core::f32::consts::PI / 180.0);
+        let j_m = p.sut_motor_inertia_share * p.sut_inertia * fx.inertia_scale[0];
+        let j_side_free = 0.5 * p.sut_inertia * fx.inertia_scale[0] - 0.5 * j_m;
+        let disc_free = if gap_rad > 0.0 {
+            let free = |s: &SideParams| {
+                SideDisc::new(
+                    &SideParams {
+                        j_a: j_side_free,
+                        ..*s
+                    },
+                    dt_s,
+                )
+            };
+            [free(&side[0]), free(&side[1])]
+        } else {
+            disc
+        };
+        let cd = fx.connector_drift;
+        let drift_weight = if cd.k_per_w > 0.0 {
+            (dt_s / (f64::from(cd.time_constant_s) + dt_s)) as f32
+        } else {
+            0.0
+        };
         let delay_steps = (f64::from(fx.controller_delay_s) / dt_s + 0.5) as usize;
         Ok(Self {
             maps,
@@ -152,6 +184,8 @@ impl<'a> Model<'a> {
             dt: dt_s as f32,
             side,
             disc,
+            disc_free,
+            drift_weight,
             r_conn: fx.connector_resistance.unwrap_or(p.connector_resistance),
             x: [[0.0; NS]; 2],
             pid: Pid::default(),
@@ -162,6 +196,8 @@ impl<'a> Model<'a> {
             delay_len: delay_steps.min(DELAY_CAPACITY),
             delay_pos: 0,
             t_us: 0,
+            backlash: Backlash::new(gap_rad, j_m, j_side_free),
+            conn_dtemp: 0.0,
         })
     }
 
@@ -231,7 +267,7 @@ impl<'a> Model<'a> {
         let n = p.sut_gear_ratio;
         let [xl, xr] = self.x;
         let w_case = 0.5 * (xl[W_A] + xr[W_A]);
-        let w_motor = n * w_case;
+        let w_motor = n * self.backlash.motor_speed(w_case);
         let (rate, case) = curtis::ramp_rate(
             &p,
             &fx.inverter_rate_scale,
@@ -249,7 +285,12 @@ impl<'a> Model<'a> {
         let df = fx.differential_friction;
         let t_diff = df.coulomb_nm * (w_case / DIFF_FRICTION_EPS).clamp(-1.0, 1.0)
             + df.viscous_nm_s * w_case;
-        let t_in = 0.5 * (n * t_motor - t_diff);
+        let t_in = 0.5 * (self.backlash.case_torque(n * t_motor) - t_diff);
+        let discs = if self.backlash.is_free() {
+            &self.disc_free
+        } else {
+            &self.disc
+        };
 
         // Per side: friction and load motor at the load node, exact linear update.
         let fade = p.regen_fade_rpm * RAD_S_PER_RPM;
@@ -258,12 +299,19 @@ impl<'a> Model<'a> {
         for (i, ((x, disc), tl)) in self
             .x
             .iter_mut()
-            .zip(self.disc.iter())
+            .zip(discs.iter())
             .zip(t_load.iter_mut())
             .enumerate()
         {
             let w_l = x[W_L];
-            let fric = self.maps.friction[i].eval(w_l * RPM_PER_RAD_S) * fx.axle_friction_scale[i];
+            let w_rpm = w_l * RPM_PER_RAD_S;
+            let mut fric = self.maps.friction[i].eval(w_rpm) * fx.axle_friction_scale[i];
+            let st = fx.stribeck_friction;
+            if st.peak_nm > 0.0 {
+                let r = w_rpm / st.speed_rpm;
+                fric +=
+                    st.peak_nm * micromath::F32(-(r * r)).exp().0 * (w_rpm / 0.5).clamp(-1.0, 1.0);
+            }
             let t_map = self.maps.load_torque[i].eval(thr_sp, load_sp[i]);
             // Regenerating torque brakes whatever way the shaft turns and fades out near
             // standstill (nothing left to regenerate); motoring drives in the run direction.
@@ -283,6 +331,11 @@ impl<'a> Model<'a> {
                 t_map * drive_dir * ((p.load_no_load_rpm - along) / span).clamp(0.0, 1.0)
             };
             *x = disc.step(x, [t_in, fric + *tl]);
+        }
+
+        if self.backlash.enabled() {
+            self.backlash
+                .after_step(n * t_motor, w_case, &mut self.x, dt);
         }
 
         // Electrics: maps -> rate limiters -> currents; supply current is the sum.
@@ -310,9 +363,14 @@ impl<'a> Model<'a> {
         let mut v_b = v_s;
         let mut sol = (0.0f32, 0.0f32, 0.0f32);
         let mut i_ld = [0.0f32; 2];
+        let r_conn = if self.drift_weight > 0.0 {
+            self.r_conn * (1.0 + fx.connector_drift.alpha_per_k * self.conn_dtemp)
+        } else {
+            self.r_conn
+        };
         let passes = if fx.supply_resistance > 0.0 { 6 } else { 1 };
         for _ in 0..passes {
-            sol = connector(p_sut, v_b, self.r_conn);
+            sol = connector(p_sut, v_b, r_conn);
             i_ld = if v_b > 0.0 {
                 [p_ld[0] / v_b, p_ld[1] / v_b]
             } else {
@@ -323,7 +381,7 @@ impl<'a> Model<'a> {
         }
         if passes > 1 {
             // Final pass at the converged busbar voltage, so all currents share one V.
-            sol = connector(p_sut, v_b, self.r_conn);
+            sol = connector(p_sut, v_b, r_conn);
             i_ld = if v_b > 0.0 {
                 [p_ld[0] / v_b, p_ld[1] / v_b]
             } else {
@@ -331,6 +389,10 @@ impl<'a> Model<'a> {
             };
         }
         let (i_dc, v_dc, _) = sol;
+        if self.drift_weight > 0.0 {
+            let heat = fx.connector_drift.k_per_w * i_dc * i_dc * r_conn;
+            self.conn_dtemp += self.drift_weight * (heat - self.conn_dtemp);
+        }
 
         self.t_us += u64::from(self.dt_us);
         self.outputs(

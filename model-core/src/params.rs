@@ -151,6 +151,8 @@ pub struct Params {
     pub load_gear_ratio: f32,
     /// [kg m^2] total SuT-side inertia, split in halves.
     pub sut_inertia: f32,
+    /// [-] share of the SuT inertia on the motor side of the gear mesh (backlash only).
+    pub sut_motor_inertia_share: f32,
     /// [kg m^2] load inertias L, R.
     pub load_inertia: [f32; 2],
     /// [kg m^2] torque flange inertia.
@@ -198,6 +200,7 @@ impl Params {
             sut_gear_ratio: d::SUT_GEAR_RATIO,
             load_gear_ratio: d::LOAD_GEAR_RATIO,
             sut_inertia: d::SUT_INERTIA,
+            sut_motor_inertia_share: d::SUT_MOTOR_INERTIA_SHARE,
             load_inertia: [d::LOAD_INERTIA_L, d::LOAD_INERTIA_R],
             flange_inertia: d::FLANGE_INERTIA,
             flange_stiffness: d::FLANGE_STIFFNESS,

@@ -1,0 +1,114 @@
+//! Free play in the SuT gearbox (the `gear_backlash` effect).
+//!
+//! The gear mesh is far stiffer than anything the step can resolve, so it is modelled by
+//! its two modes rather than as a stiff spring: in *contact* the motor share of the SuT
+//! inertia moves with the differential (the thesis model); when the torque through the
+//! mesh reverses it *separates*, the motor turns freely under its own torque while the
+//! gap (axle-frame angle) opens and closes, and on closing the two re-engage with an
+//! inelastic impact that conserves angular momentum. The motor encoder sees the motor,
+//! the flanges see the shafts: the free flight shows as a brief speed mismatch and a
+//! torque dip at every torque reversal.
+
+use crate::drivetrain::{NS, W_A};
+
+/// Torque [N m, axle frame] by which the mesh torque must reverse before the gears part;
+/// avoids chattering around zero load.
+const SEPARATION_NM: f32 = 0.05;
+
+/// Backlash state and constants.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Backlash {
+    half_gap: f32,
+    j_m: f32,
+    j_side_free: f32,
+    free: bool,
+    gap: f32,
+    side: f32,
+    w_m: f32,
+}
+
+impl Backlash {
+    /// `gap_rad`: total free play [rad, axle frame]; `j_m`: motor-side inertia [kg m²,
+    /// axle frame]; `j_side_free`: each side's SuT inertia without the motor share. The
+    /// gears start in the middle of the gap (nothing engaged yet).
+    pub fn new(gap_rad: f32, j_m: f32, j_side_free: f32) -> Self {
+        Self {
+            half_gap: 0.5 * gap_rad,
+            j_m,
+            j_side_free,
+            free: gap_rad > 0.0,
+            gap: 0.0,
+            side: 1.0,
+            w_m: 0.0,
+        }
+    }
+
+    /// Whether backlash is modelled at all.
+    #[inline]
+    pub fn enabled(&self) -> bool {
+        self.half_gap > 0.0
+    }
+
+    /// Whether the gears are apart this step.
+    #[inline]
+    pub fn is_free(&self) -> bool {
+        self.free
+    }
+
+    /// Motor speed [rad/s, axle frame] given the differential case speed.
+    #[inline]
+    pub fn motor_speed(&self, w_case: f32) -> f32 {
+        if self.free {
+            self.w_m
+        } else {
+            w_case
+        }
+    }
+
+    /// Motor torque reaching the differential case [N m, axle frame].
+    #[inline]
+    pub fn case_torque(&self, motor_torque_axle: f32) -> f32 {
+        if self.free {
+            0.0
+        } else {
+            motor_torque_axle
+        }
+    }
+
+    /// After the shafts stepped: move the free motor and the gap, re-engage on closing
+    /// (impulse shared equally by the sides, as the open differential splits torque), or
+    /// part when the mesh torque reverses.
+    pub fn after_step(
+        &mut self,
+        motor_torque_axle: f32,
+        w_case_before: f32,
+        x: &mut [[f32; NS]; 2],
+        dt: f32,
+    ) {
+        let w_case = 0.5 * (x[0][W_A] + x[1][W_A]);
+        if self.free {
+            self.w_m += motor_torque_axle / self.j_m * dt;
+            self.gap += (self.w_m - w_case) * dt;
+            if self.gap >= self.half_gap || self.gap <= -self.half_gap {
+                self.side = if self.gap > 0.0 { 1.0 } else { -1.0 };
+                self.gap = self.side * self.half_gap;
+                let impulse =
+                    (self.w_m - w_case) / (1.0 / self.j_m + 1.0 / (2.0 * self.j_side_free));
+                for side in x.iter_mut() {
+                    side[W_A] += impulse / (2.0 * self.j_side_free);
+                }
+                self.w_m -= impulse / self.j_m;
+                self.free = false;
+            }
+        } else {
+            // Torque through the mesh: what the motor gives minus what accelerating its own
+            // inertia takes. Parting when it pulls against the engaged flank.
+            let accel = (w_case - w_case_before) / dt;
+            let mesh = motor_torque_axle - self.j_m * accel;
+            if self.side * mesh < -SEPARATION_NM {
+                self.free = true;
+                self.w_m = w_case;
+            }
+        }
+    }
+}
