@@ -36,8 +36,7 @@ fn fail(file: &Path, line: usize, msg: &str) -> ! {
 
 /// Non-comment, non-empty lines with their 1-based line numbers.
 fn data_lines(path: &Path) -> Vec<(usize, String)> {
-    let text =
-        fs::read_to_string(path).unwrap_or_else(|e| fail(path, 0, &format!("cannot read: {e}")));
+    let text = fs::read_to_string(path).unwrap_or_else(|e| fail(path, 0, &format!("cannot read: {e}")));
     text.lines()
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim().to_string()))
@@ -48,11 +47,7 @@ fn data_lines(path: &Path) -> Vec<(usize, String)> {
 fn num(path: &Path, line: usize, field: &str, what: &str) -> f32 {
     match field.trim().parse::<f32>() {
         Ok(v) if v.is_finite() => v,
-        _ => fail(
-            path,
-            line,
-            &format!("{what}: expected a finite number, found `{}`", field.trim()),
-        ),
+        _ => fail(path, line, &format!("{what}: expected a finite number, found `{}`", field.trim())),
     }
 }
 
@@ -62,14 +57,7 @@ fn check_increasing(path: &Path, line: usize, xs: &[f32], what: &str) {
     }
     for w in xs.windows(2) {
         if w[1] <= w[0] {
-            fail(
-                path,
-                line,
-                &format!(
-                    "{what}: grid must be strictly increasing ({} then {})",
-                    w[0], w[1]
-                ),
-            );
+            fail(path, line, &format!("{what}: grid must be strictly increasing ({} then {})", w[0], w[1]));
         }
     }
 }
@@ -80,29 +68,18 @@ fn lit(v: f32) -> String {
 
 fn array(name: &str, vals: &[f32]) -> String {
     let body: Vec<String> = vals.iter().map(|v| lit(*v)).collect();
-    format!(
-        "pub static {name}: [f32; {}] = [{}];\n",
-        vals.len(),
-        body.join(", ")
-    )
+    format!("pub static {name}: [f32; {}] = [{}];\n", vals.len(), body.join(", "))
 }
 
 fn table_1d(out: &mut String, name: &str, path: &Path) {
     let lines = data_lines(path);
-    let (hl, _header) = lines
-        .first()
-        .cloned()
-        .unwrap_or_else(|| fail(path, 0, "empty file"));
+    let (hl, _header) = lines.first().cloned().unwrap_or_else(|| fail(path, 0, "empty file"));
     let mut xs = Vec::new();
     let mut ys = Vec::new();
     for (ln, l) in lines.iter().skip(1) {
         let f: Vec<&str> = l.split(',').collect();
         if f.len() != 2 {
-            fail(
-                path,
-                *ln,
-                &format!("expected 2 columns (x,y), found {}", f.len()),
-            );
+            fail(path, *ln, &format!("expected 2 columns (x,y), found {}", f.len()));
         }
         xs.push(num(path, *ln, f[0], "x"));
         ys.push(num(path, *ln, f[1], "y"));
@@ -114,26 +91,15 @@ fn table_1d(out: &mut String, name: &str, path: &Path) {
 
 fn table_2d(out: &mut String, name: &str, path: &Path) {
     let lines = data_lines(path);
-    let (hl, header) = lines
-        .first()
-        .cloned()
-        .unwrap_or_else(|| fail(path, 0, "empty file"));
-    let xs: Vec<f32> = header
-        .split(',')
-        .skip(1)
-        .map(|f| num(path, hl, f, "column grid"))
-        .collect();
+    let (hl, header) = lines.first().cloned().unwrap_or_else(|| fail(path, 0, "empty file"));
+    let xs: Vec<f32> = header.split(',').skip(1).map(|f| num(path, hl, f, "column grid")).collect();
     check_increasing(path, hl, &xs, "column grid (throttle set point)");
     let mut ys = Vec::new();
     let mut zs = Vec::new();
     for (ln, l) in lines.iter().skip(1) {
         let f: Vec<&str> = l.split(',').collect();
         if f.len() != xs.len() + 1 {
-            fail(
-                path,
-                *ln,
-                &format!("expected {} columns, found {}", xs.len() + 1, f.len()),
-            );
+            fail(path, *ln, &format!("expected {} columns, found {}", xs.len() + 1, f.len()));
         }
         ys.push(num(path, *ln, f[0], "row grid"));
         for v in &f[1..] {
@@ -153,15 +119,9 @@ fn parameters(out: &mut String, path: &Path) {
         if l.is_empty() {
             continue;
         }
-        let (k, v) = l
-            .split_once('=')
-            .unwrap_or_else(|| fail(path, ln, "expected `name = number`"));
+        let (k, v) = l.split_once('=').unwrap_or_else(|| fail(path, ln, "expected `name = number`"));
         let key = k.trim();
-        if key.is_empty()
-            || !key
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '.')
-        {
+        if key.is_empty() || !key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '.') {
             fail(path, ln, &format!("bad parameter name `{key}`"));
         }
         let name = key.replace('.', "_").to_ascii_uppercase();
@@ -196,11 +156,7 @@ fn profile(out: &mut String, name: &str, path: &Path) {
         let mode = |m: &str| match m {
             "hold" => "Hold",
             "interp" => "Interpolate",
-            _ => fail(
-                path,
-                *ln,
-                &format!("mode must be `hold` or `interp`, found `{m}`"),
-            ),
+            _ => fail(path, *ln, &format!("mode must be `hold` or `interp`, found `{m}`")),
         };
         sets.push(format!(
             "ProfileSet {{ duration_s: {}, throttle_pct: {}, load_l_pct: {}, load_r_pct: {}, throttle_mode: SetMode::{}, load_mode: SetMode::{} }}",
@@ -208,25 +164,14 @@ fn profile(out: &mut String, name: &str, path: &Path) {
         ));
     }
     if sets.is_empty() || sets.len() > MAX_SETS {
-        fail(
-            path,
-            0,
-            &format!("a profile has 1 to {MAX_SETS} sets, found {}", sets.len()),
-        );
+        fail(path, 0, &format!("a profile has 1 to {MAX_SETS} sets, found {}", sets.len()));
     }
-    writeln!(
-        out,
-        "pub static PROFILE_{name}: [ProfileSet; {}] = [{}];",
-        sets.len(),
-        sets.join(", ")
-    )
-    .ok();
+    writeln!(out, "pub static PROFILE_{name}: [ProfileSet; {}] = [{}];", sets.len(), sets.join(", ")).ok();
 }
 
 fn main() {
     let data =
-        PathBuf::from(env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"))
-            .join("data");
+        PathBuf::from(env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR")).join("data");
     println!("cargo:rerun-if-changed={}", data.display());
     let mut out = String::from("// @generated by model-core/build.rs from data/. Do not edit.\n");
     out.push_str("#[allow(unused_imports)] use crate::profile::{ProfileSet, SetMode};\n");

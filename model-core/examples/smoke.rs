@@ -5,10 +5,7 @@ fn main() {
     let ts: f32 = args[2].parse().unwrap();
     let ls: f32 = args[3].parse().unwrap();
     let dt: u32 = args.get(4).map(|s| s.parse().unwrap()).unwrap_or(1000);
-    let cfg = Config {
-        dt_us: dt,
-        ..Config::default()
-    };
+    let cfg = Config { dt_us: dt, ..Config::default() };
     let sim = Simulation::new(&cfg, Profile::builtin(prof, ts, ls).unwrap(), 24.0).unwrap();
     let every = (500_000 / dt) as usize;
     for (k, o) in sim.enumerate() {

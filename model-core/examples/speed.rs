@@ -3,20 +3,13 @@ use model_core::*;
 use std::time::Instant;
 fn main() {
     for dt in [1000u32, 100] {
-        let cfg = Config {
-            dt_us: dt,
-            ..Config::default()
-        };
+        let cfg = Config { dt_us: dt, ..Config::default() };
         let t0 = Instant::now();
         let mut n = 0u64;
         let mut acc = 0.0f32;
         for _ in 0..5 {
-            let sim = Simulation::new(
-                &cfg,
-                Profile::builtin(Builtin::TP07, 1.0, 1.0).unwrap(),
-                24.0,
-            )
-            .unwrap();
+            let sim =
+                Simulation::new(&cfg, Profile::builtin(Builtin::TP07, 1.0, 1.0).unwrap(), 24.0).unwrap();
             for o in sim {
                 acc += o.get(Channel::SuTMotorEnc);
                 n += 1;

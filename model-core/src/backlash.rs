@@ -32,15 +32,7 @@ impl Backlash {
     /// axle frame]; `j_side_free`: each side's SuT inertia without the motor share. The
     /// gears start in the middle of the gap (nothing engaged yet).
     pub fn new(gap_rad: f32, j_m: f32, j_side_free: f32) -> Self {
-        Self {
-            half_gap: 0.5 * gap_rad,
-            j_m,
-            j_side_free,
-            free: gap_rad > 0.0,
-            gap: 0.0,
-            side: 1.0,
-            w_m: 0.0,
-        }
+        Self { half_gap: 0.5 * gap_rad, j_m, j_side_free, free: gap_rad > 0.0, gap: 0.0, side: 1.0, w_m: 0.0 }
     }
 
     /// Whether backlash is modelled at all.
@@ -92,8 +84,7 @@ impl Backlash {
             if self.gap >= self.half_gap || self.gap <= -self.half_gap {
                 self.side = if self.gap > 0.0 { 1.0 } else { -1.0 };
                 self.gap = self.side * self.half_gap;
-                let impulse =
-                    (self.w_m - w_case) / (1.0 / self.j_m + 1.0 / (2.0 * self.j_side_free));
+                let impulse = (self.w_m - w_case) / (1.0 / self.j_m + 1.0 / (2.0 * self.j_side_free));
                 for side in x.iter_mut() {
                     side[W_A] += impulse / (2.0 * self.j_side_free);
                 }

@@ -37,11 +37,7 @@ impl Pid {
 #[inline]
 pub fn torque_limit(p: &Params, speed: f32) -> f32 {
     let w = if speed < 0.0 { -speed } else { speed };
-    let by_power = if w > 0.0 {
-        p.motor_power_max_w / w
-    } else {
-        p.motor_torque_max_nm
-    };
+    let by_power = if w > 0.0 { p.motor_power_max_w / w } else { p.motor_torque_max_nm };
     if by_power < p.motor_torque_max_nm {
         by_power
     } else {

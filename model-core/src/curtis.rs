@@ -40,12 +40,7 @@ fn rpm_per_s(p: &Params, seconds: f32) -> f32 {
 
 #[inline]
 fn hs_ls_blend(p: &Params, r: &DirectionRates, speed_rpm: f32, hs_s: f32, ls_s: f32) -> f32 {
-    let s = if speed_rpm < 0.0 {
-        -speed_rpm
-    } else {
-        speed_rpm
-    } / p.typical_max_speed_rpm
-        * 100.0;
+    let s = if speed_rpm < 0.0 { -speed_rpm } else { speed_rpm } / p.typical_max_speed_rpm * 100.0;
     let w = if r.hs_pct > r.ls_pct {
         ((s - r.ls_pct) / (r.hs_pct - r.ls_pct)).clamp(0.0, 1.0)
     } else if s >= r.ls_pct {
@@ -94,10 +89,7 @@ pub fn ramp_rate(
         let rate = hs_ls_blend(p, r, speed_rpm, r.neutral_decel_hs_s, r.neutral_decel_ls_s);
         (rate * sc[1], RateCase::NeutralDecel)
     } else {
-        (
-            rpm_per_s(p, r.partial_decel_s) * sc[1],
-            RateCase::PartialDecel,
-        )
+        (rpm_per_s(p, r.partial_decel_s) * sc[1], RateCase::PartialDecel)
     }
 }
 

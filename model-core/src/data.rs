@@ -31,6 +31,27 @@ pub struct Maps<'a> {
     pub sut_power: Table2<'a>,
 }
 
+impl Maps<'_> {
+    /// The 2-D tables, in a fixed order.
+    pub fn tables_2d(&self) -> [&Table2<'_>; 7] {
+        [
+            &self.load_torque[0],
+            &self.load_torque[1],
+            &self.load_current[0],
+            &self.load_current[1],
+            &self.load_power[0],
+            &self.load_power[1],
+            &self.sut_power,
+        ]
+    }
+
+    /// True when every 2-D table shares the SuT power map's grids, so one location of
+    /// each set point serves all lookups of a step.
+    pub fn shared_2d_grid(&self) -> bool {
+        self.tables_2d().iter().all(|t| t.same_grid(&self.sut_power))
+    }
+}
+
 impl Maps<'static> {
     /// The maps compiled from `data/`.
     pub const fn builtin() -> Self {

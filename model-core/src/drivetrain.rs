@@ -50,17 +50,9 @@ pub struct SideParams {
 impl SideParams {
     /// Continuous-time `A` (states as in the module docs) and `B` (inputs `[T_in, T_ext]`).
     pub fn continuous(&self) -> ([[f64; NS]; NS], [[f64; 2]; NS]) {
-        let (ja, jf, jl) = (
-            f64::from(self.j_a),
-            f64::from(self.j_f),
-            f64::from(self.j_l),
-        );
-        let (kf, cf, kc, cc) = (
-            f64::from(self.k_f),
-            f64::from(self.c_f),
-            f64::from(self.k_c),
-            f64::from(self.c_c),
-        );
+        let (ja, jf, jl) = (f64::from(self.j_a), f64::from(self.j_f), f64::from(self.j_l));
+        let (kf, cf, kc, cc) =
+            (f64::from(self.k_f), f64::from(self.c_f), f64::from(self.k_c), f64::from(self.c_c));
         let a = [
             [-cf / ja, cf / ja, 0.0, -kf / ja, 0.0],
             [cf / jf, -(cf + cc) / jf, cc / jf, kf / jf, -kc / jf],
@@ -68,13 +60,7 @@ impl SideParams {
             [1.0, -1.0, 0.0, 0.0, 0.0],
             [0.0, 1.0, -1.0, 0.0, 0.0],
         ];
-        let b = [
-            [1.0 / ja, 0.0],
-            [0.0, 0.0],
-            [0.0, -1.0 / jl],
-            [0.0, 0.0],
-            [0.0, 0.0],
-        ];
+        let b = [[1.0 / ja, 0.0], [0.0, 0.0], [0.0, -1.0 / jl], [0.0, 0.0], [0.0, 0.0]];
         (a, b)
     }
 }

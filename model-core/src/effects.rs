@@ -140,10 +140,7 @@ pub const LIBRARY: &[&str] = &[
 impl Effects {
     /// Every effect off: the thesis model.
     pub const NONE: Self = Self {
-        differential_friction: DifferentialFriction {
-            coulomb_nm: 0.0,
-            viscous_nm_s: 0.0,
-        },
+        differential_friction: DifferentialFriction { coulomb_nm: 0.0, viscous_nm_s: 0.0 },
         axle_friction_scale: [1.0, 1.0],
         controller_delay_s: 0.0,
         inverter_rate_scale: [[1.0, 1.0], [1.0, 1.0]],
@@ -158,15 +155,8 @@ impl Effects {
         speed_sensor_gain: [1.0; 4],
         current_sensor_gain: [1.0; 4],
         gear_backlash: GearBacklash { backlash_deg: 0.0 },
-        stribeck_friction: StribeckFriction {
-            peak_nm: 0.0,
-            speed_rpm: 0.0,
-        },
-        connector_drift: ConnectorDrift {
-            alpha_per_k: 0.0,
-            k_per_w: 0.0,
-            time_constant_s: 0.0,
-        },
+        stribeck_friction: StribeckFriction { peak_nm: 0.0, speed_rpm: 0.0 },
+        connector_drift: ConnectorDrift { alpha_per_k: 0.0, k_per_w: 0.0, time_constant_s: 0.0 },
     };
 
     /// True when every effect is off.
@@ -179,18 +169,10 @@ impl Effects {
         let fin = |v: f32| v.is_finite();
         let pos = |v: f32| v.is_finite() && v > 0.0;
         let df = &self.differential_friction;
-        if !(fin(df.coulomb_nm)
-            && df.coulomb_nm >= 0.0
-            && fin(df.viscous_nm_s)
-            && df.viscous_nm_s >= 0.0)
-        {
+        if !(fin(df.coulomb_nm) && df.coulomb_nm >= 0.0 && fin(df.viscous_nm_s) && df.viscous_nm_s >= 0.0) {
             return Err("differential_friction");
         }
-        if !self
-            .axle_friction_scale
-            .iter()
-            .all(|v| fin(*v) && *v >= 0.0)
-        {
+        if !self.axle_friction_scale.iter().all(|v| fin(*v) && *v >= 0.0) {
             return Err("axle_friction_scale");
         }
         if !(fin(self.controller_delay_s) && self.controller_delay_s >= 0.0) {
@@ -208,16 +190,10 @@ impl Effects {
         if !self.inertia_scale.iter().all(|v| pos(*v)) {
             return Err("inertia_scale");
         }
-        if self
-            .connector_resistance
-            .is_some_and(|v| !(fin(v) && v >= 0.0))
-        {
+        if self.connector_resistance.is_some_and(|v| !(fin(v) && v >= 0.0)) {
             return Err("connector_resistance");
         }
-        if !(fin(self.supply_resistance)
-            && self.supply_resistance >= 0.0
-            && self.supply_resistance < 1.0)
-        {
+        if !(fin(self.supply_resistance) && self.supply_resistance >= 0.0 && self.supply_resistance < 1.0) {
             return Err("supply_resistance");
         }
         if !(fin(self.regen_loss) && (0.0..1.0).contains(&self.regen_loss)) {
@@ -273,16 +249,10 @@ pub enum EffectKeyError {
 
 /// The parameter names of each effect, as written in effect files.
 pub const EFFECT_PARAMS: &[(&str, &[&str])] = &[
-    (
-        "differential_friction",
-        &["coulomb_nm", "viscous_nm_s_per_rad"],
-    ),
+    ("differential_friction", &["coulomb_nm", "viscous_nm_s_per_rad"]),
     ("axle_friction_scale", &["left", "right"]),
     ("controller_delay", &["delay_s"]),
-    (
-        "inverter_rate_scale",
-        &["accel_fwd", "decel_fwd", "accel_rev", "decel_rev"],
-    ),
+    ("inverter_rate_scale", &["accel_fwd", "decel_fwd", "accel_rev", "decel_rev"]),
     ("coupling_stiffness", &["stiffness_nm_per_rad"]),
     ("coupling_damping", &["damping_nm_s_per_rad"]),
     ("inertia_scale", &["sut", "load_l", "load_r"]),
@@ -291,17 +261,11 @@ pub const EFFECT_PARAMS: &[(&str, &[&str])] = &[
     ("regen_efficiency", &["extra_loss"]),
     ("torque_sensor_offset", &["left_nm", "right_nm"]),
     ("torque_sensor_gain", &["left", "right"]),
-    (
-        "speed_sensor_gain",
-        &["sut_motor", "flange_l", "flange_r", "siemens"],
-    ),
+    ("speed_sensor_gain", &["sut_motor", "flange_l", "flange_r", "siemens"]),
     ("current_sensor_gain", &["dpu", "dc", "xlml", "xlmr"]),
     ("gear_backlash", &["backlash_deg"]),
     ("stribeck_friction", &["peak_nm", "speed_rpm"]),
-    (
-        "connector_resistance_drift",
-        &["alpha_per_k", "k_per_w", "time_constant_s"],
-    ),
+    ("connector_resistance_drift", &["alpha_per_k", "k_per_w", "time_constant_s"]),
 ];
 
 impl Effects {
@@ -314,9 +278,7 @@ impl Effects {
             .map(|(_, p)| *p)
             .ok_or(EffectKeyError::UnknownEffect)?;
         let slot: Option<&mut f32> = match (effect, param) {
-            ("differential_friction", "coulomb_nm") => {
-                Some(&mut self.differential_friction.coulomb_nm)
-            }
+            ("differential_friction", "coulomb_nm") => Some(&mut self.differential_friction.coulomb_nm),
             ("differential_friction", "viscous_nm_s_per_rad") => {
                 Some(&mut self.differential_friction.viscous_nm_s)
             }
@@ -359,9 +321,7 @@ impl Effects {
             ("gear_backlash", "backlash_deg") => Some(&mut self.gear_backlash.backlash_deg),
             ("stribeck_friction", "peak_nm") => Some(&mut self.stribeck_friction.peak_nm),
             ("stribeck_friction", "speed_rpm") => Some(&mut self.stribeck_friction.speed_rpm),
-            ("connector_resistance_drift", "alpha_per_k") => {
-                Some(&mut self.connector_drift.alpha_per_k)
-            }
+            ("connector_resistance_drift", "alpha_per_k") => Some(&mut self.connector_drift.alpha_per_k),
             ("connector_resistance_drift", "k_per_w") => Some(&mut self.connector_drift.k_per_w),
             ("connector_resistance_drift", "time_constant_s") => {
                 Some(&mut self.connector_drift.time_constant_s)
@@ -384,8 +344,7 @@ mod tests {
         for (id, params) in EFFECT_PARAMS {
             for p in *params {
                 let mut fx = Effects::NONE;
-                fx.set(id, p, 0.5)
-                    .unwrap_or_else(|e| panic!("{id}.{p}: {e:?}"));
+                fx.set(id, p, 0.5).unwrap_or_else(|e| panic!("{id}.{p}: {e:?}"));
                 assert_ne!(fx, Effects::NONE, "{id}.{p} changed nothing");
             }
         }
@@ -396,10 +355,7 @@ mod tests {
     #[test]
     fn unknown_names_are_refused() {
         let mut fx = Effects::NONE;
-        assert_eq!(
-            fx.set("warp_drive", "x", 1.0),
-            Err(EffectKeyError::UnknownEffect)
-        );
+        assert_eq!(fx.set("warp_drive", "x", 1.0), Err(EffectKeyError::UnknownEffect));
         assert!(matches!(
             fx.set("controller_delay", "delay", 1.0),
             Err(EffectKeyError::UnknownParameter(["delay_s"]))

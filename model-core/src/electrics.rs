@@ -56,19 +56,10 @@ mod tests {
 
     #[test]
     fn connector_solves_the_power_equation() {
-        for &(p, v) in &[
-            (6000.0f32, 24.0f32),
-            (-1600.0, 24.0),
-            (300.0, 12.0),
-            (0.0, 30.0),
-        ] {
+        for &(p, v) in &[(6000.0f32, 24.0f32), (-1600.0, 24.0), (300.0, 12.0), (0.0, 30.0)] {
             let (i, vdc, pl) = connector(p, v, 0.0196);
             assert_eq!(pl, p);
-            assert!(
-                (vdc * i - p).abs() <= 1e-4 * p.abs().max(1.0),
-                "p={p} v={v}: {}",
-                vdc * i
-            );
+            assert!((vdc * i - p).abs() <= 1e-4 * p.abs().max(1.0), "p={p} v={v}: {}", vdc * i);
             assert!(vdc <= v || p < 0.0);
         }
     }

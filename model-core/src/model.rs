@@ -4,14 +4,13 @@ use crate::backlash::Backlash;
 use crate::controller::Pid;
 use crate::curtis::{self, RateCase};
 use crate::data::Maps;
-use crate::drivetrain::{
-    SideDisc, SideParams, NS, PHI_AF, RAD_S_PER_RPM, RPM_PER_RAD_S, W_A, W_F, W_L,
-};
+use crate::drivetrain::{SideDisc, SideParams, NS, PHI_AF, RAD_S_PER_RPM, RPM_PER_RAD_S, W_A, W_F, W_L};
 use crate::effects::{Effects, DELAY_CAPACITY};
 use crate::electrics::{connector, RateLimiter};
 use crate::outputs::{Channel as C, Outputs};
 use crate::params::{Params, SpeedTarget};
 use crate::profile::SetPoints;
+use crate::table::{locate_hinted, Loc, Table2};
 use crate::throttle;
 
 /// Smallest and largest step [µs] the model accepts.
@@ -67,10 +66,48 @@ pub struct Inputs {
     pub supply_v: f32,
 }
 
+/// A set point with its location on the 2-D maps' shared grid.
+#[derive(Debug, Clone, Copy)]
+struct Query {
+    v: f32,
+    loc: Loc,
+}
+
+/// Last intervals found per lookup: throttle, loads L/R, load mean on the 2-D grid;
+/// friction L/R; throttle input map; speed map.
+#[derive(Debug, Clone, Copy, Default)]
+struct Hints {
+    thr: usize,
+    load: [usize; 2],
+    load_mean: usize,
+    friction: [usize; 2],
+    throttle_input: usize,
+    speed: usize,
+}
+
+/// What one step computed besides the state, for the outputs.
+#[derive(Debug, Clone, Copy)]
+struct StepSignals {
+    thr_sp: f32,
+    load_sp: [f32; 2],
+    mapped: f32,
+    target: f32,
+    case: RateCase,
+    t_motor: f32,
+    t_load: [f32; 2],
+    i_phase: [f32; 2],
+    v_b: f32,
+    i_dc: f32,
+    v_dc: f32,
+    i_ld: [f32; 2],
+}
+
 /// The model state: one fixed-size struct, no heap.
 #[derive(Debug, Clone)]
 pub struct Model<'a> {
     maps: Maps<'a>,
+    /// All 2-D maps share one grid: locate each set point once per step.
+    shared_grid: bool,
     p: Params,
     fx: Effects,
     mode: SpeedTarget,
@@ -94,6 +131,8 @@ pub struct Model<'a> {
     delay_pos: usize,
     t_us: u64,
     backlash: Backlash,
+    /// Search hints for the table lookups (see `table::locate_hinted`).
+    hints: Hints,
     /// [K] connector temperature rise (`connector_resistance_drift`).
     conn_dtemp: f32,
 }
@@ -128,10 +167,7 @@ impl<'a> Model<'a> {
             ("sut_gear_ratio", p.sut_gear_ratio),
             ("typical_max_speed_rpm", p.typical_max_speed_rpm),
             ("motor_torque_max_nm", p.motor_torque_max_nm),
-            (
-                "load_no_load_rpm (must exceed load_base_rpm)",
-                p.load_no_load_rpm - p.load_base_rpm,
-            ),
+            ("load_no_load_rpm (must exceed load_base_rpm)", p.load_no_load_rpm - p.load_base_rpm),
         ];
         if let Some((name, _)) = checks.iter().find(|(_, v)| !positive(*v)) {
             return Err(ConfigError::Parameter(name));
@@ -155,27 +191,17 @@ impl<'a> Model<'a> {
         let j_m = p.sut_motor_inertia_share * p.sut_inertia * fx.inertia_scale[0];
         let j_side_free = 0.5 * p.sut_inertia * fx.inertia_scale[0] - 0.5 * j_m;
         let disc_free = if gap_rad > 0.0 {
-            let free = |s: &SideParams| {
-                SideDisc::new(
-                    &SideParams {
-                        j_a: j_side_free,
-                        ..*s
-                    },
-                    dt_s,
-                )
-            };
+            let free = |s: &SideParams| SideDisc::new(&SideParams { j_a: j_side_free, ..*s }, dt_s);
             [free(&side[0]), free(&side[1])]
         } else {
             disc
         };
         let cd = fx.connector_drift;
-        let drift_weight = if cd.k_per_w > 0.0 {
-            (dt_s / (f64::from(cd.time_constant_s) + dt_s)) as f32
-        } else {
-            0.0
-        };
+        let drift_weight =
+            if cd.k_per_w > 0.0 { (dt_s / (f64::from(cd.time_constant_s) + dt_s)) as f32 } else { 0.0 };
         let delay_steps = (f64::from(fx.controller_delay_s) / dt_s + 0.5) as usize;
         Ok(Self {
+            shared_grid: maps.shared_2d_grid(),
             maps,
             p: *p,
             fx: *fx,
@@ -198,6 +224,7 @@ impl<'a> Model<'a> {
             t_us: 0,
             backlash: Backlash::new(gap_rad, j_m, j_side_free),
             conn_dtemp: 0.0,
+            hints: Hints::default(),
         })
     }
 
@@ -221,6 +248,27 @@ impl<'a> Model<'a> {
         &self.side
     }
 
+    /// Where a throttle / load set point falls on the shared grid (if there is one).
+    #[inline]
+    fn query(shared: bool, t: &Table2<'_>, v: f32, throttle_axis: bool, hint: &mut usize) -> Query {
+        let loc = match (shared, throttle_axis) {
+            (false, _) => (0, 0.0),
+            (true, true) => locate_hinted(t.x(), v, hint),
+            (true, false) => locate_hinted(t.y(), v, hint),
+        };
+        Query { v, loc }
+    }
+
+    /// A 2-D map at (throttle, load) set points.
+    #[inline]
+    fn map2(&self, t: &Table2<'a>, thr: Query, load: Query) -> f32 {
+        if self.shared_grid {
+            t.eval_loc(thr.loc, load.loc)
+        } else {
+            t.eval(thr.v, load.v)
+        }
+    }
+
     /// The throttle as the controller sees it, after the `controller_delay` effect.
     fn delayed_throttle(&mut self, v: f32) -> f32 {
         if self.delay_len == 0 {
@@ -231,11 +279,7 @@ impl<'a> Model<'a> {
         if let Some(slot) = self.delay.get_mut(pos) {
             *slot = v;
         }
-        self.delay_pos = if pos + 1 >= self.delay_len {
-            0
-        } else {
-            pos + 1
-        };
+        self.delay_pos = if pos + 1 >= self.delay_len { 0 } else { pos + 1 };
         out
     }
 
@@ -252,9 +296,13 @@ impl<'a> Model<'a> {
             }
         };
         let thr_sp = finite_pct(inp.sp.throttle_pct);
-        let load_sp = [
-            finite_pct(inp.sp.load_pct[0]),
-            finite_pct(inp.sp.load_pct[1]),
+        let load_sp = [finite_pct(inp.sp.load_pct[0]), finite_pct(inp.sp.load_pct[1])];
+        let (sg, grid) = (self.shared_grid, self.maps.sut_power);
+        let h = &mut self.hints;
+        let q_thr = Self::query(sg, &grid, thr_sp, true, &mut h.thr);
+        let q_load = [
+            Self::query(sg, &grid, load_sp[0], false, &mut h.load[0]),
+            Self::query(sg, &grid, load_sp[1], false, &mut h.load[1]),
         ];
 
         // Throttle chain and Curtis rate logic.
@@ -262,8 +310,9 @@ impl<'a> Model<'a> {
         let mapped = self
             .maps
             .throttle_input
-            .eval(throttle::voltage(&p, thr_ctl));
-        let target = throttle::target_speed_rpm(&self.maps, &p, self.mode, mapped, thr_ctl);
+            .eval_hinted(throttle::voltage(&p, thr_ctl), &mut self.hints.throttle_input);
+        let target =
+            throttle::target_speed_rpm(&self.maps, &p, self.mode, mapped, thr_ctl, &mut self.hints.speed);
         let n = p.sut_gear_ratio;
         let [xl, xr] = self.x;
         let w_case = 0.5 * (xl[W_A] + xr[W_A]);
@@ -279,49 +328,34 @@ impl<'a> Model<'a> {
         self.cmd_rpm = curtis::advance(self.cmd_rpm, target, rate, dt);
 
         // Speed controller -> motor torque -> gearbox -> open differential.
-        let t_motor = self
-            .pid
-            .update(&p, self.cmd_rpm * RAD_S_PER_RPM, w_motor, dt);
+        let t_motor = self.pid.update(&p, self.cmd_rpm * RAD_S_PER_RPM, w_motor, dt);
         let df = fx.differential_friction;
-        let t_diff = df.coulomb_nm * (w_case / DIFF_FRICTION_EPS).clamp(-1.0, 1.0)
-            + df.viscous_nm_s * w_case;
+        let t_diff = df.coulomb_nm * (w_case / DIFF_FRICTION_EPS).clamp(-1.0, 1.0) + df.viscous_nm_s * w_case;
         let t_in = 0.5 * (self.backlash.case_torque(n * t_motor) - t_diff);
-        let discs = if self.backlash.is_free() {
-            &self.disc_free
-        } else {
-            &self.disc
-        };
+        let discs = if self.backlash.is_free() { &self.disc_free } else { &self.disc };
 
         // Per side: friction and load motor at the load node, exact linear update.
         let fade = p.regen_fade_rpm * RAD_S_PER_RPM;
         let drive_dir = if thr_sp < 0.0 { -1.0 } else { 1.0 };
         let mut t_load = [0.0f32; 2];
-        for (i, ((x, disc), tl)) in self
-            .x
-            .iter_mut()
-            .zip(discs.iter())
-            .zip(t_load.iter_mut())
-            .enumerate()
-        {
+        for (i, ((x, disc), tl)) in self.x.iter_mut().zip(discs.iter()).zip(t_load.iter_mut()).enumerate() {
             let w_l = x[W_L];
             let w_rpm = w_l * RPM_PER_RAD_S;
-            let mut fric = self.maps.friction[i].eval(w_rpm) * fx.axle_friction_scale[i];
+            let hint = &mut self.hints.friction[i];
+            let mut fric = self.maps.friction[i].eval_hinted(w_rpm, hint) * fx.axle_friction_scale[i];
             let st = fx.stribeck_friction;
             if st.peak_nm > 0.0 {
                 let r = w_rpm / st.speed_rpm;
-                fric +=
-                    st.peak_nm * micromath::F32(-(r * r)).exp().0 * (w_rpm / 0.5).clamp(-1.0, 1.0);
+                fric += st.peak_nm * micromath::F32(-(r * r)).exp().0 * (w_rpm / 0.5).clamp(-1.0, 1.0);
             }
-            let t_map = self.maps.load_torque[i].eval(thr_sp, load_sp[i]);
+            let t_map = match (self.shared_grid, q_load.get(i)) {
+                (true, Some(q)) => self.maps.load_torque[i].eval_loc(q_thr.loc, q.loc),
+                _ => self.maps.load_torque[i].eval(thr_sp, load_sp[i]),
+            };
             // Regenerating torque brakes whatever way the shaft turns and fades out near
             // standstill (nothing left to regenerate); motoring drives in the run direction.
             *tl = if t_map >= 0.0 {
-                t_map
-                    * (if fade > 0.0 {
-                        (w_l / fade).clamp(-1.0, 1.0)
-                    } else {
-                        0.0
-                    })
+                t_map * (if fade > 0.0 { (w_l / fade).clamp(-1.0, 1.0) } else { 0.0 })
             } else {
                 // Motoring: as mapped up to the base speed, then fading linearly to zero
                 // at the no-load speed in the direction it drives (back-EMF meets the
@@ -334,8 +368,7 @@ impl<'a> Model<'a> {
         }
 
         if self.backlash.enabled() {
-            self.backlash
-                .after_step(n * t_motor, w_case, &mut self.x, dt);
+            self.backlash.after_step(n * t_motor, w_case, &mut self.x, dt);
         }
 
         // Electrics: maps -> rate limiters -> currents; supply current is the sum.
@@ -347,17 +380,20 @@ impl<'a> Model<'a> {
                 pw
             }
         };
-        let p_sut = regen(self.p_sut.update(
-            self.maps.sut_power.eval(thr_sp, load_mean),
-            p.sut_power_rate_w_per_s * dt,
-        ));
+        let q_mean = Self::query(self.shared_grid, &grid, load_mean, false, &mut self.hints.load_mean);
+        let sut_map = self.map2(&self.maps.sut_power, q_thr, q_mean);
+        let load_map = [
+            self.map2(&self.maps.load_power[0], q_thr, q_load[0]),
+            self.map2(&self.maps.load_power[1], q_thr, q_load[1]),
+        ];
+        let i_phase = [
+            self.map2(&self.maps.load_current[0], q_thr, q_load[0]),
+            self.map2(&self.maps.load_current[1], q_thr, q_load[1]),
+        ];
+        let p_sut = regen(self.p_sut.update(sut_map, p.sut_power_rate_w_per_s * dt));
         let mut p_ld = [0.0f32; 2];
-        for ((pl, lim), (tab, lsp)) in p_ld
-            .iter_mut()
-            .zip(self.p_load.iter_mut())
-            .zip(self.maps.load_power.iter().zip(load_sp.iter()))
-        {
-            *pl = regen(lim.update(tab.eval(thr_sp, *lsp), p.load_power_rate_w_per_s * dt));
+        for ((pl, lim), m) in p_ld.iter_mut().zip(self.p_load.iter_mut()).zip(load_map) {
+            *pl = regen(lim.update(m, p.load_power_rate_w_per_s * dt));
         }
         let v_s = inp.supply_v;
         let mut v_b = v_s;
@@ -371,22 +407,14 @@ impl<'a> Model<'a> {
         let passes = if fx.supply_resistance > 0.0 { 6 } else { 1 };
         for _ in 0..passes {
             sol = connector(p_sut, v_b, r_conn);
-            i_ld = if v_b > 0.0 {
-                [p_ld[0] / v_b, p_ld[1] / v_b]
-            } else {
-                [0.0, 0.0]
-            };
+            i_ld = if v_b > 0.0 { [p_ld[0] / v_b, p_ld[1] / v_b] } else { [0.0, 0.0] };
             let i_sum = sol.0 + i_ld[0] + i_ld[1];
             v_b = v_s - fx.supply_resistance * i_sum;
         }
         if passes > 1 {
             // Final pass at the converged busbar voltage, so all currents share one V.
             sol = connector(p_sut, v_b, r_conn);
-            i_ld = if v_b > 0.0 {
-                [p_ld[0] / v_b, p_ld[1] / v_b]
-            } else {
-                [0.0, 0.0]
-            };
+            i_ld = if v_b > 0.0 { [p_ld[0] / v_b, p_ld[1] / v_b] } else { [0.0, 0.0] };
         }
         let (i_dc, v_dc, _) = sol;
         if self.drift_weight > 0.0 {
@@ -395,26 +423,37 @@ impl<'a> Model<'a> {
         }
 
         self.t_us += u64::from(self.dt_us);
-        self.outputs(
-            thr_sp, load_sp, mapped, target, case, t_motor, t_load, v_b, i_dc, v_dc, i_ld,
-        )
+        self.outputs(&StepSignals {
+            thr_sp,
+            load_sp,
+            mapped,
+            target,
+            case,
+            t_motor,
+            t_load,
+            i_phase,
+            v_b,
+            i_dc,
+            v_dc,
+            i_ld,
+        })
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn outputs(
-        &self,
-        thr_sp: f32,
-        load_sp: [f32; 2],
-        mapped: f32,
-        target: f32,
-        case: RateCase,
-        t_motor: f32,
-        t_load: [f32; 2],
-        v_b: f32,
-        i_dc: f32,
-        v_dc: f32,
-        i_ld: [f32; 2],
-    ) -> Outputs {
+    fn outputs(&self, sig: &StepSignals) -> Outputs {
+        let StepSignals {
+            thr_sp,
+            load_sp,
+            mapped,
+            target,
+            case,
+            t_motor,
+            t_load,
+            i_phase,
+            v_b,
+            i_dc,
+            v_dc,
+            i_ld,
+        } = *sig;
         let p = &self.p;
         let fx = &self.fx;
         let [xl, xr] = self.x;
@@ -434,10 +473,7 @@ impl<'a> Model<'a> {
         let i_xlml = 0.5 * i_ld[0] * cg[2];
         let i_xlmr = 0.5 * i_ld[1] * cg[3];
 
-        let mut o = Outputs {
-            t_us: self.t_us,
-            ..Outputs::default()
-        };
+        let mut o = Outputs { t_us: self.t_us, ..Outputs::default() };
         o.set(C::Throttle, throttle::voltage(p, thr_sp));
         o.set(C::SuTMotorEnc, motor_rpm * sg[0]);
         o.set(C::CKistlerL, c_l);
@@ -472,14 +508,8 @@ impl<'a> Model<'a> {
         o.set(C::SuTTorque, t_motor);
         o.set(C::LoadTorqueL, t_load[0]);
         o.set(C::LoadTorqueR, t_load[1]);
-        o.set(
-            C::ILmlPhase,
-            self.maps.load_current[0].eval(thr_sp, load_sp[0]),
-        );
-        o.set(
-            C::ILmrPhase,
-            self.maps.load_current[1].eval(thr_sp, load_sp[1]),
-        );
+        o.set(C::ILmlPhase, i_phase[0]);
+        o.set(C::ILmrPhase, i_phase[1]);
         o.set(C::LoadSpeedL, xl[W_L] * RPM_PER_RAD_S * p.load_gear_ratio);
         o.set(C::LoadSpeedR, xr[W_L] * RPM_PER_RAD_S * p.load_gear_ratio);
         o

@@ -117,9 +117,6 @@ impl Outputs {
 
 impl Default for Outputs {
     fn default() -> Self {
-        Self {
-            t_us: 0,
-            values: [0.0; N_CHANNELS],
-        }
+        Self { t_us: 0, values: [0.0; N_CHANNELS] }
     }
 }

@@ -61,13 +61,7 @@ pub enum Builtin {
 
 impl Builtin {
     /// All built-in profiles.
-    pub const ALL: [Builtin; 5] = [
-        Builtin::TP07,
-        Builtin::TP11,
-        Builtin::TP12,
-        Builtin::TP13,
-        Builtin::TP14,
-    ];
+    pub const ALL: [Builtin; 5] = [Builtin::TP07, Builtin::TP11, Builtin::TP12, Builtin::TP13, Builtin::TP14];
 
     /// The profile's sets.
     pub fn sets(self) -> &'static [ProfileSet] {
@@ -93,9 +87,7 @@ impl Builtin {
 
     /// Look up by name (case-insensitive).
     pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL
-            .into_iter()
-            .find(|b| b.name().eq_ignore_ascii_case(name))
+        Self::ALL.into_iter().find(|b| b.name().eq_ignore_ascii_case(name))
     }
 }
 
@@ -133,11 +125,7 @@ impl Profile {
     /// Build a profile; scales multiply the set points (a negative scale flips the sign:
     /// reverse for the throttle, motoring/regenerating for the loads). Scaled set points
     /// are clamped to [-100, 100] %.
-    pub fn new(
-        sets: &[ProfileSet],
-        throttle_scale: f32,
-        load_scale: f32,
-    ) -> Result<Self, ProfileError> {
+    pub fn new(sets: &[ProfileSet], throttle_scale: f32, load_scale: f32) -> Result<Self, ProfileError> {
         if sets.is_empty() || sets.len() > MAX_SETS {
             return Err(ProfileError::SetCount(sets.len()));
         }
@@ -156,29 +144,15 @@ impl Profile {
             }
             // f64 product then round: exact for any duration written with <= 6 decimals.
             let dur_us = (f64::from(s.duration_s) * 1.0e6 + 0.5) as u64;
-            let timed = TimedSet {
-                set: *s,
-                start_us,
-                dur_us: dur_us.max(1),
-            };
+            let timed = TimedSet { set: *s, start_us, dur_us: dur_us.max(1) };
             start_us += timed.dur_us;
-            out.push(timed)
-                .map_err(|_| ProfileError::SetCount(sets.len()))?;
+            out.push(timed).map_err(|_| ProfileError::SetCount(sets.len()))?;
         }
-        Ok(Self {
-            sets: out,
-            throttle_scale,
-            load_scale,
-            end_us: start_us,
-        })
+        Ok(Self { sets: out, throttle_scale, load_scale, end_us: start_us })
     }
 
     /// A built-in profile, scaled.
-    pub fn builtin(
-        which: Builtin,
-        throttle_scale: f32,
-        load_scale: f32,
-    ) -> Result<Self, ProfileError> {
+    pub fn builtin(which: Builtin, throttle_scale: f32, load_scale: f32) -> Result<Self, ProfileError> {
         Self::new(which.sets(), throttle_scale, load_scale)
     }
 
@@ -201,21 +175,9 @@ impl Profile {
             SetMode::Interpolate => a + frac * (b - a),
         };
         let s = &cur.set;
-        let thr = blend(
-            s.throttle_mode,
-            s.throttle_pct,
-            next.map_or(0.0, |n| n.throttle_pct),
-        );
-        let ll = blend(
-            s.load_mode,
-            s.load_l_pct,
-            next.map_or(0.0, |n| n.load_l_pct),
-        );
-        let lr = blend(
-            s.load_mode,
-            s.load_r_pct,
-            next.map_or(0.0, |n| n.load_r_pct),
-        );
+        let thr = blend(s.throttle_mode, s.throttle_pct, next.map_or(0.0, |n| n.throttle_pct));
+        let ll = blend(s.load_mode, s.load_l_pct, next.map_or(0.0, |n| n.load_l_pct));
+        let lr = blend(s.load_mode, s.load_r_pct, next.map_or(0.0, |n| n.load_r_pct));
         let clamp = |v: f32| v.clamp(-100.0, 100.0);
         SetPoints {
             throttle_pct: clamp(thr * self.throttle_scale),
@@ -243,10 +205,7 @@ mod tests {
     fn hold_interpolate_scale_and_end() {
         use SetMode::*;
         let p = Profile::new(
-            &[
-                set(1.0, 50.0, 20.0, Hold, Interpolate),
-                set(2.0, 100.0, 60.0, Interpolate, Hold),
-            ],
+            &[set(1.0, 50.0, 20.0, Hold, Interpolate), set(2.0, 100.0, 60.0, Interpolate, Hold)],
             0.5,
             -1.0,
         )
@@ -264,15 +223,9 @@ mod tests {
     #[test]
     fn rejects_invalid_profiles() {
         use SetMode::*;
-        assert_eq!(
-            Profile::new(&[], 1.0, 1.0).unwrap_err(),
-            ProfileError::SetCount(0)
-        );
+        assert_eq!(Profile::new(&[], 1.0, 1.0).unwrap_err(), ProfileError::SetCount(0));
         let eleven = [set(1.0, 0.0, 0.0, Hold, Hold); 11];
-        assert_eq!(
-            Profile::new(&eleven, 1.0, 1.0).unwrap_err(),
-            ProfileError::SetCount(11)
-        );
+        assert_eq!(Profile::new(&eleven, 1.0, 1.0).unwrap_err(), ProfileError::SetCount(11));
         assert_eq!(
             Profile::new(&[set(0.0, 0.0, 0.0, Hold, Hold)], 1.0, 1.0).unwrap_err(),
             ProfileError::Duration(0)
@@ -290,11 +243,7 @@ mod tests {
     #[test]
     fn builtins_exist_and_fit_the_plc() {
         for b in Builtin::ALL {
-            assert!(
-                !b.sets().is_empty() && b.sets().len() <= MAX_SETS,
-                "{}",
-                b.name()
-            );
+            assert!(!b.sets().is_empty() && b.sets().len() <= MAX_SETS, "{}", b.name());
             assert_eq!(Builtin::from_name(&b.name().to_ascii_lowercase()), Some(b));
             Profile::builtin(b, 1.0, 1.0).unwrap();
         }

@@ -16,37 +16,24 @@ pub struct Simulation<'a> {
 impl Simulation<'static> {
     /// On the built-in maps.
     pub fn new(cfg: &Config, profile: Profile, supply_v: f32) -> Result<Self, ConfigError> {
-        Ok(Self {
-            model: Model::new(cfg)?,
-            profile,
-            supply_v,
-        })
+        Ok(Self { model: Model::new(cfg)?, profile, supply_v })
     }
 }
 
 impl<'a> Simulation<'a> {
     /// On a model built by the caller (e.g. with run-time maps).
     pub fn from_model(model: Model<'a>, profile: Profile, supply_v: f32) -> Self {
-        Self {
-            model,
-            profile,
-            supply_v,
-        }
+        Self { model, profile, supply_v }
     }
 
     /// Number of steps that cover the profile.
     pub fn total_steps(&self) -> u64 {
-        self.profile
-            .duration_us()
-            .div_ceil(u64::from(self.model.dt_us()))
+        self.profile.duration_us().div_ceil(u64::from(self.model.dt_us()))
     }
 
     /// The inputs applied at the current time.
     pub fn inputs(&self) -> Inputs {
-        Inputs {
-            sp: self.profile.at(self.model.t_us()),
-            supply_v: self.supply_v,
-        }
+        Inputs { sp: self.profile.at(self.model.t_us()), supply_v: self.supply_v }
     }
 
     /// One step; `None` once the profile is over.

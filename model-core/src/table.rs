@@ -34,9 +34,13 @@ fn check_grid(x: &[f32]) -> Result<(), TableError> {
     Ok(())
 }
 
+/// Where a query falls on a grid: interval index and fraction. Computing it once and
+/// reusing it for every table on the same grid saves most of a lookup's cost.
+pub type Loc = (usize, f32);
+
 /// Interval index `i` and fraction `t` with `x[i] + t (x[i+1]-x[i]) = q`, clamped.
 #[inline]
-fn locate(x: &[f32], q: f32) -> (usize, f32) {
+pub fn locate(x: &[f32], q: f32) -> Loc {
     let n = x.len();
     let first = x.first().copied().unwrap_or(0.0);
     let last = x.last().copied().unwrap_or(0.0);
@@ -52,6 +56,21 @@ fn locate(x: &[f32], q: f32) -> (usize, f32) {
     let x0 = x.get(i).copied().unwrap_or(0.0);
     let x1 = x.get(i + 1).copied().unwrap_or(1.0);
     (i, (q - x0) / (x1 - x0))
+}
+
+/// [`locate`], trying the interval `*hint` first and updating it: signals move slowly,
+/// so the last interval is almost always still right. Gives exactly `locate`'s result.
+#[inline]
+pub fn locate_hinted(x: &[f32], q: f32, hint: &mut usize) -> Loc {
+    let h = *hint;
+    if let (Some(&first), Some(&last), Some(&x0), Some(&x1)) = (x.first(), x.last(), x.get(h), x.get(h + 1)) {
+        if q > first && q < last && q >= x0 && q < x1 {
+            return (h, (q - x0) / (x1 - x0));
+        }
+    }
+    let loc = locate(x, q);
+    *hint = loc.0;
+    loc
 }
 
 /// A 1-D table `y(x)`.
@@ -92,7 +111,17 @@ impl<'a> Table1<'a> {
     /// Interpolated value; edges clamp.
     #[inline]
     pub fn eval(&self, q: f32) -> f32 {
-        let (i, t) = locate(self.x, q);
+        self.eval_loc(locate(self.x, q))
+    }
+
+    /// [`Table1::eval`] with a search hint (see [`locate_hinted`]).
+    #[inline]
+    pub fn eval_hinted(&self, q: f32, hint: &mut usize) -> f32 {
+        self.eval_loc(locate_hinted(self.x, q, hint))
+    }
+
+    #[inline]
+    fn eval_loc(&self, (i, t): Loc) -> f32 {
         let y0 = self.y.get(i).copied().unwrap_or(0.0);
         let y1 = self.y.get(i + 1).copied().unwrap_or(y0);
         y0 + t * (y1 - y0)
@@ -144,9 +173,18 @@ impl<'a> Table2<'a> {
     /// Bilinear interpolation; edges clamp.
     #[inline]
     pub fn eval(&self, qx: f32, qy: f32) -> f32 {
+        self.eval_loc(locate(self.x, qx), locate(self.y, qy))
+    }
+
+    /// True when `other` has exactly the same grids (so locations can be shared).
+    pub fn same_grid(&self, other: &Table2<'_>) -> bool {
+        self.x == other.x && self.y == other.y
+    }
+
+    /// Bilinear interpolation at locations found with [`locate`] on this table's grids.
+    #[inline]
+    pub fn eval_loc(&self, (ix, tx): Loc, (iy, ty): Loc) -> f32 {
         let nx = self.x.len();
-        let (ix, tx) = locate(self.x, qx);
-        let (iy, ty) = locate(self.y, qy);
         let at = |r: usize, c: usize| self.z.get(r * nx + c).copied().unwrap_or(0.0);
         let z00 = at(iy, ix);
         let z01 = at(iy, ix + 1);
@@ -174,27 +212,29 @@ mod tests {
     }
 
     #[test]
+    fn hinted_search_equals_plain_search() {
+        let x = [-3.0f32, -1.0, 0.0, 0.5, 2.0, 7.0];
+        let mut hint = 0;
+        let mut q = -5.0f32;
+        while q < 9.0 {
+            for start in 0..x.len() + 2 {
+                let mut h = start;
+                assert_eq!(locate_hinted(&x, q, &mut h), locate(&x, q), "q={q} hint={start}");
+            }
+            assert_eq!(locate_hinted(&x, q, &mut hint), locate(&x, q));
+            q += 0.037;
+        }
+        let mut h = 2;
+        assert_eq!(locate_hinted(&x, f32::NAN, &mut h), locate(&x, f32::NAN));
+    }
+
+    #[test]
     fn rejects_bad_grids() {
-        assert_eq!(
-            Table1::new(&[0.0, 0.0], &[1.0, 2.0]).unwrap_err(),
-            TableError::NotIncreasing
-        );
-        assert_eq!(
-            Table1::new(&[0.0], &[1.0]).unwrap_err(),
-            TableError::TooShort
-        );
-        assert_eq!(
-            Table1::new(&[0.0, 1.0], &[1.0]).unwrap_err(),
-            TableError::LengthMismatch
-        );
-        assert_eq!(
-            Table1::new(&[0.0, f32::NAN], &[1.0, 2.0]).unwrap_err(),
-            TableError::NotFinite
-        );
-        assert_eq!(
-            Table2::new(&[0.0, 1.0], &[0.0, 1.0], &[0.0; 3]).unwrap_err(),
-            TableError::LengthMismatch
-        );
+        assert_eq!(Table1::new(&[0.0, 0.0], &[1.0, 2.0]).unwrap_err(), TableError::NotIncreasing);
+        assert_eq!(Table1::new(&[0.0], &[1.0]).unwrap_err(), TableError::TooShort);
+        assert_eq!(Table1::new(&[0.0, 1.0], &[1.0]).unwrap_err(), TableError::LengthMismatch);
+        assert_eq!(Table1::new(&[0.0, f32::NAN], &[1.0, 2.0]).unwrap_err(), TableError::NotFinite);
+        assert_eq!(Table2::new(&[0.0, 1.0], &[0.0, 1.0], &[0.0; 3]).unwrap_err(), TableError::LengthMismatch);
     }
 
     #[test]

@@ -8,11 +8,7 @@ use crate::params::{Params, SpeedTarget};
 /// within 0..5 V. The sign is the direction switch, not part of the voltage.
 #[inline]
 pub fn voltage(p: &Params, setpoint_pct: f32) -> f32 {
-    let a = if setpoint_pct < 0.0 {
-        -setpoint_pct
-    } else {
-        setpoint_pct
-    };
+    let a = if setpoint_pct < 0.0 { -setpoint_pct } else { setpoint_pct };
     (a * p.throttle_volts_per_pct).clamp(0.0, 5.0)
 }
 
@@ -23,7 +19,7 @@ pub fn dir_index(v: f32) -> usize {
 }
 
 /// Signed target motor speed [rpm] for a mapped throttle [%] in the direction of
-/// `setpoint_pct`.
+/// `setpoint_pct`. `hint` speeds up the map lookup (see `table::locate_hinted`).
 #[inline]
 pub fn target_speed_rpm(
     maps: &Maps<'_>,
@@ -31,21 +27,16 @@ pub fn target_speed_rpm(
     mode: SpeedTarget,
     mapped_pct: f32,
     setpoint_pct: f32,
+    hint: &mut usize,
 ) -> f32 {
     let d = dir_index(setpoint_pct);
     let limit = p.speed_limit_rpm.get(d).copied().unwrap_or(0.0);
     let mag = match mode {
         SpeedTarget::Map => {
-            let t = if d == 0 {
-                &maps.speed_fwd
-            } else {
-                &maps.speed_rev
-            };
-            t.eval(mapped_pct)
+            let t = if d == 0 { &maps.speed_fwd } else { &maps.speed_rev };
+            t.eval_hinted(mapped_pct, hint)
         }
-        SpeedTarget::Parameter => {
-            mapped_pct * 0.01 * p.max_speed_rpm.get(d).copied().unwrap_or(0.0)
-        }
+        SpeedTarget::Parameter => mapped_pct * 0.01 * p.max_speed_rpm.get(d).copied().unwrap_or(0.0),
     };
     let mag = mag.clamp(0.0, limit);
     if d == 0 {

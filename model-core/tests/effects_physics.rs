@@ -5,24 +5,12 @@ use common::*;
 use model_core::*;
 
 fn tp07(fx: Effects) -> Vec<Outputs> {
-    let cfg = Config {
-        effects: fx,
-        ..Config::default()
-    };
-    Simulation::new(
-        &cfg,
-        Profile::builtin(Builtin::TP07, 1.0, 1.0).unwrap(),
-        24.0,
-    )
-    .unwrap()
-    .collect()
+    let cfg = Config { effects: fx, ..Config::default() };
+    Simulation::new(&cfg, Profile::builtin(Builtin::TP07, 1.0, 1.0).unwrap(), 24.0).unwrap().collect()
 }
 
 fn max_abs_diff(a: &[Outputs], b: &[Outputs], c: Channel) -> f32 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x.get(c) - y.get(c)).abs())
-        .fold(0.0, f32::max)
+    a.iter().zip(b).map(|(x, y)| (x.get(c) - y.get(c)).abs()).fold(0.0, f32::max)
 }
 
 #[test]
@@ -58,21 +46,13 @@ fn every_effect_changes_the_outputs_and_none_is_bit_identical() {
             fx.set(id, "time_constant_s", 10.0).unwrap();
         }
         let out = tp07(fx);
-        let changed = Channel::ALL
-            .iter()
-            .any(|c| max_abs_diff(&base, &out, *c) > 1e-3);
+        let changed = Channel::ALL.iter().any(|c| max_abs_diff(&base, &out, *c) > 1e-3);
         assert!(changed, "{id}.{param} = {v} changed nothing");
-        assert!(
-            out.iter().all(|o| o.values.iter().all(|v| v.is_finite())),
-            "{id}: non-finite output"
-        );
+        assert!(out.iter().all(|o| o.values.iter().all(|v| v.is_finite())), "{id}: non-finite output");
     }
     // Off means off: the same bits as the thesis model.
     let again = tp07(Effects::NONE);
-    assert!(base
-        .iter()
-        .zip(&again)
-        .all(|(a, b)| a.values.map(f32::to_bits) == b.values.map(f32::to_bits)));
+    assert!(base.iter().zip(&again).all(|(a, b)| a.values.map(f32::to_bits) == b.values.map(f32::to_bits)));
 }
 
 #[test]
@@ -84,19 +64,13 @@ fn backlash_parts_the_motor_from_the_axles_only_at_torque_reversals() {
     let ratio = Params::default().sut_gear_ratio;
     // Mismatch between the motor encoder and the axle speeds: zero in contact (up to the
     // shafts' own twist), large while the gears are apart.
-    let mismatch =
-        |o: &Outputs| (o.get(Channel::SuTMotorEnc) - ratio * o.get(Channel::SpeedTot)).abs();
+    let mismatch = |o: &Outputs| (o.get(Channel::SuTMotorEnc) - ratio * o.get(Channel::SpeedTot)).abs();
     let worst_with = with.iter().map(mismatch).fold(0.0, f32::max);
     let worst_base = base.iter().map(mismatch).fold(0.0, f32::max);
-    assert!(
-        worst_with > 2.0 * worst_base + 5.0,
-        "backlash mismatch {worst_with} vs base {worst_base}"
-    );
+    assert!(worst_with > 2.0 * worst_base + 5.0, "backlash mismatch {worst_with} vs base {worst_base}");
     // Steady plateaus are unchanged (the gears are engaged there).
-    let (a, b) = (
-        mean(&with, Channel::SuTMotorEnc, 14.0, 16.0),
-        mean(&base, Channel::SuTMotorEnc, 14.0, 16.0),
-    );
+    let (a, b) =
+        (mean(&with, Channel::SuTMotorEnc, 14.0, 16.0), mean(&base, Channel::SuTMotorEnc, 14.0, 16.0));
     assert!((a - b).abs() < 1.0, "{a} vs {b}");
 }
 
@@ -104,19 +78,11 @@ fn backlash_parts_the_motor_from_the_axles_only_at_torque_reversals() {
 fn controller_delay_shifts_the_speed_response() {
     let mut fx = Effects::NONE;
     fx.controller_delay_s = 0.2;
-    let cfg = Config {
-        effects: fx,
-        ..Config::default()
-    };
+    let cfg = Config { effects: fx, ..Config::default() };
     let sets = steps(&[(1.0, 0.0, 0.0), (4.0, 100.0, 0.0)]);
     let with = run(&cfg, &sets);
     let base = run(&Config::default(), &sets);
-    let cross = |out: &[Outputs]| {
-        out.iter()
-            .find(|o| o.get(Channel::SuTMotorEnc) > 1000.0)
-            .unwrap()
-            .t_s()
-    };
+    let cross = |out: &[Outputs]| out.iter().find(|o| o.get(Channel::SuTMotorEnc) > 1000.0).unwrap().t_s();
     let shift = cross(&with) - cross(&base);
     assert!((shift - 0.2).abs() < 0.01, "shift {shift}");
 }
@@ -125,31 +91,15 @@ fn controller_delay_shifts_the_speed_response() {
 fn stribeck_friction_acts_at_low_speed_only() {
     let mut fx = Effects::NONE;
     // The slowest steady plateau the speed map allows is ~25 rpm at the axle.
-    fx.stribeck_friction = effects::StribeckFriction {
-        peak_nm: 6.0,
-        speed_rpm: 30.0,
-    };
-    let cfg = Config {
-        effects: fx,
-        ..Config::default()
-    };
+    fx.stribeck_friction = effects::StribeckFriction { peak_nm: 6.0, speed_rpm: 30.0 };
+    let cfg = Config { effects: fx, ..Config::default() };
     // A slow plateau (~25 rpm axle) and a fast one (190 rpm).
     let slow = steps(&[(8.0, 33.0, 0.0)]);
     let fast = steps(&[(8.0, 100.0, 0.0)]);
     let d_slow = mean(&run(&cfg, &slow), Channel::CKistlerL, 6.0, 8.0)
-        - mean(
-            &run(&Config::default(), &slow),
-            Channel::CKistlerL,
-            6.0,
-            8.0,
-        );
+        - mean(&run(&Config::default(), &slow), Channel::CKistlerL, 6.0, 8.0);
     let d_fast = mean(&run(&cfg, &fast), Channel::CKistlerL, 6.0, 8.0)
-        - mean(
-            &run(&Config::default(), &fast),
-            Channel::CKistlerL,
-            6.0,
-            8.0,
-        );
+        - mean(&run(&Config::default(), &fast), Channel::CKistlerL, 6.0, 8.0);
     assert!(d_slow > 1.0, "slow plateau gains friction: {d_slow}");
     assert!(d_fast.abs() < 0.01, "fast plateau unchanged: {d_fast}");
 }
@@ -157,15 +107,8 @@ fn stribeck_friction_acts_at_low_speed_only() {
 #[test]
 fn connector_drift_raises_the_drop_as_it_warms() {
     let mut fx = Effects::NONE;
-    fx.connector_drift = effects::ConnectorDrift {
-        alpha_per_k: 0.0039,
-        k_per_w: 0.1,
-        time_constant_s: 20.0,
-    };
-    let cfg = Config {
-        effects: fx,
-        ..Config::default()
-    };
+    fx.connector_drift = effects::ConnectorDrift { alpha_per_k: 0.0039, k_per_w: 0.1, time_constant_s: 20.0 };
+    let cfg = Config { effects: fx, ..Config::default() };
     let out = run(&cfg, &steps(&[(40.0, 100.0, 60.0)]));
     let r = |o: &Outputs| (o.get(Channel::VDcBusbars) - o.get(Channel::VDc)) / o.get(Channel::IDc);
     let early = r(&out[1_000]);

@@ -9,26 +9,16 @@ fn mode() -> impl Strategy<Value = SetMode> {
 }
 
 fn set() -> impl Strategy<Value = ProfileSet> {
-    (
-        0.2f32..15.0,
-        -100.0f32..=100.0,
-        -100.0f32..=100.0,
-        -100.0f32..=100.0,
-        mode(),
-        mode(),
+    (0.2f32..15.0, -100.0f32..=100.0, -100.0f32..=100.0, -100.0f32..=100.0, mode(), mode()).prop_map(
+        |(duration_s, throttle_pct, load_l_pct, load_r_pct, throttle_mode, load_mode)| ProfileSet {
+            duration_s,
+            throttle_pct,
+            load_l_pct,
+            load_r_pct,
+            throttle_mode,
+            load_mode,
+        },
     )
-        .prop_map(
-            |(duration_s, throttle_pct, load_l_pct, load_r_pct, throttle_mode, load_mode)| {
-                ProfileSet {
-                    duration_s,
-                    throttle_pct,
-                    load_l_pct,
-                    load_r_pct,
-                    throttle_mode,
-                    load_mode,
-                }
-            },
-        )
 }
 
 fn scenario() -> impl Strategy<Value = (Vec<ProfileSet>, f32, f32, f32, bool, bool)> {
@@ -69,57 +59,29 @@ fn check(o: &Outputs, supply_v: f32, p: &Params) -> Result<(), String> {
     for (c, b) in bounds {
         let v = o.get(c);
         if v.abs() > b {
-            return Err(format!(
-                "|{}| = {} > {b} at t={}",
-                c.name(),
-                v.abs(),
-                o.t_s()
-            ));
+            return Err(format!("|{}| = {} > {b} at t={}", c.name(), v.abs(), o.t_s()));
         }
     }
     let vdc = o.get(Channel::VDc);
     if !(vdc > 0.0 && vdc < supply_v + 5.0) {
-        return Err(format!(
-            "V_DC = {vdc} outside (0, {}) at t={}",
-            supply_v + 5.0,
-            o.t_s()
-        ));
+        return Err(format!("V_DC = {vdc} outside (0, {}) at t={}", supply_v + 5.0, o.t_s()));
     }
     Ok(())
 }
 
-fn run_60s(
-    dt_us: u32,
-    sc: &(Vec<ProfileSet>, f32, f32, f32, bool, bool),
-) -> Result<(), TestCaseError> {
+fn run_60s(dt_us: u32, sc: &(Vec<ProfileSet>, f32, f32, f32, bool, bool)) -> Result<(), TestCaseError> {
     let (sets, ts, ls, supply_v, programmed, parameter) = sc;
     let params = Params::thesis(
-        if *programmed {
-            RateSet::Programmed
-        } else {
-            RateSet::Identified
-        },
+        if *programmed { RateSet::Programmed } else { RateSet::Identified },
         CouplingStiffness::Identified,
     );
-    let speed_target = if *parameter {
-        SpeedTarget::Parameter
-    } else {
-        SpeedTarget::Map
-    };
-    let cfg = Config {
-        dt_us,
-        params,
-        speed_target,
-        effects: Effects::NONE,
-    };
+    let speed_target = if *parameter { SpeedTarget::Parameter } else { SpeedTarget::Map };
+    let cfg = Config { dt_us, params, speed_target, effects: Effects::NONE };
     let profile = Profile::new(sets, *ts, *ls).expect("generated profiles are valid");
     let mut model = Model::new(&cfg).expect("valid config");
     let steps = 60_000_000 / u64::from(dt_us);
     for _ in 0..steps {
-        let inp = Inputs {
-            sp: profile.at(model.t_us()),
-            supply_v: *supply_v,
-        };
+        let inp = Inputs { sp: profile.at(model.t_us()), supply_v: *supply_v };
         let o = model.step(&inp);
         check(&o, *supply_v, &params).map_err(TestCaseError::fail)?;
     }

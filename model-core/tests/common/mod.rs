@@ -18,19 +18,13 @@ pub fn steps(sets: &[(f32, f32, f32)]) -> Vec<ProfileSet> {
 }
 
 pub fn config(rates: RateSet, dt_us: u32) -> Config {
-    Config {
-        dt_us,
-        params: Params::thesis(rates, CouplingStiffness::Identified),
-        ..Config::default()
-    }
+    Config { dt_us, params: Params::thesis(rates, CouplingStiffness::Identified), ..Config::default() }
 }
 
 /// Run a profile, returning all outputs.
 pub fn run(cfg: &Config, sets: &[ProfileSet]) -> Vec<Outputs> {
     let p = Profile::new(sets, 1.0, 1.0).expect("valid profile");
-    Simulation::new(cfg, p, 24.0)
-        .expect("valid config")
-        .collect()
+    Simulation::new(cfg, p, 24.0).expect("valid config").collect()
 }
 
 pub fn series(out: &[Outputs], c: Channel) -> Vec<(f64, f32)> {
@@ -39,11 +33,7 @@ pub fn series(out: &[Outputs], c: Channel) -> Vec<(f64, f32)> {
 
 /// Mean of a channel over [t0, t1).
 pub fn mean(out: &[Outputs], c: Channel, t0: f64, t1: f64) -> f32 {
-    let v: Vec<f32> = out
-        .iter()
-        .filter(|o| o.t_s() >= t0 && o.t_s() < t1)
-        .map(|o| o.get(c))
-        .collect();
+    let v: Vec<f32> = out.iter().filter(|o| o.t_s() >= t0 && o.t_s() < t1).map(|o| o.get(c)).collect();
     v.iter().sum::<f32>() / v.len() as f32
 }
 
@@ -56,11 +46,7 @@ pub fn slope_between(out: &[Outputs], c: Channel, lo: f32, hi: f32, t0: f64, t1:
         .map(|o| (o.t_s(), f64::from(o.get(c))))
         .filter(|(_, v)| *v >= f64::from(lo) && *v <= f64::from(hi))
         .collect();
-    assert!(
-        pts.len() > 50,
-        "too few points between {lo} and {hi}: {}",
-        pts.len()
-    );
+    assert!(pts.len() > 50, "too few points between {lo} and {hi}: {}", pts.len());
     let n = pts.len() as f64;
     let mt = pts.iter().map(|p| p.0).sum::<f64>() / n;
     let mv = pts.iter().map(|p| p.1).sum::<f64>() / n;
