@@ -1,1 +1,3 @@
 //! Host-side tests.
+
+pub mod reference;

@@ -174,6 +174,8 @@ pub struct Params {
     pub regen_fade_rpm: f32,
     /// [ohm] busbar-to-SuT-inverter connector resistance.
     pub connector_resistance: f32,
+    /// [-] SuT motor + inverter efficiency for power the maps do not cover.
+    pub sut_drive_efficiency: f32,
     /// [W/s] SuT inverter power rate limit.
     pub sut_power_rate_w_per_s: f32,
     /// [W/s] load power rate limit.
@@ -214,6 +216,7 @@ impl Params {
             load_base_rpm: d::LOAD_BASE_RPM,
             regen_fade_rpm: d::REGEN_FADE_RPM,
             connector_resistance: d::CONNECTOR_RESISTANCE,
+            sut_drive_efficiency: d::SUT_DRIVE_EFFICIENCY,
             sut_power_rate_w_per_s: d::SUT_POWER_RATE_W_PER_S,
             load_power_rate_w_per_s: d::LOAD_POWER_RATE_W_PER_S,
         }

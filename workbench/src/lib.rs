@@ -3,4 +3,17 @@
 //! Modules are grouped by what they do for the user; `main.rs` only parses arguments
 //! and dispatches.
 
+pub mod atomic;
+pub mod cmd_compare;
+pub mod compare;
+pub mod diagnose;
+pub mod effects_file;
+pub mod error;
 pub mod measure;
+pub mod profile_file;
+pub mod report;
+pub mod sim_csv;
+pub mod simulate;
+pub mod summary;
+pub mod toml_util;
+pub mod vbench;

@@ -1,1 +1,50 @@
-fn main() {}
+//! `simrod`: argument parsing and dispatch only; each command lives in its own library
+//! module (`workbench::simulate`, ...).
+//!
+//! Exit codes: 0 success, 2 usage error (bad argument or input file, reported before
+//! any work), 1 runtime error (the work itself failed, e.g. writing the output).
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use workbench::error::CmdError;
+use workbench::simulate::{self, SimulateArgs};
+
+#[derive(Debug, Parser)]
+#[command(name = "simrod", version, about = "The SimRod e-powertrain twin on the host")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+/// One variant per command; its arguments and code live in the command's module.
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run the twin on a test profile and write every channel to a CSV.
+    Simulate(SimulateArgs),
+    /// Virtual bench: run the twin, add sensor noise and encoder counting, and write
+    /// only what the real bench records (CSV or MAT).
+    Bench(workbench::vbench::BenchArgs),
+    /// Run the twin on a measured run's inputs and show where they disagree: per
+    /// channel, per operating region, worst time spans, residual structure.
+    Compare(workbench::cmd_compare::CompareArgs),
+}
+
+fn dispatch(command: Command) -> Result<(), CmdError> {
+    match command {
+        Command::Simulate(args) => simulate::execute(&args),
+        Command::Bench(args) => workbench::vbench::execute(&args),
+        Command::Compare(args) => workbench::cmd_compare::execute(&args),
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse(); // clap reports its own usage errors, with exit code 2
+    match dispatch(cli.command) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(1))
+        }
+    }
+}

@@ -1,0 +1,128 @@
+//! # SimRod twin firmware (Cortex-M4F)
+//!
+//! The `model-core` twin at the bench rate on a microcontroller: a periodic tick runs
+//! one step, set points come from the built-in profile in flash or from a serial
+//! stream (XiL), outputs go out on the serial stream, a status pin flags late or
+//! overrunning steps. Two binaries share this library:
+//!
+//! - `firmware` (`src/main.rs`): the real-time bench loop.
+//! - `simrod-trace` (`src/bin/simrod-trace.rs`): runs the named profiles flat out and
+//!   streams every channel's bits to the host, the proof that the target computes
+//!   the very same bits as the host simulation.
+//!
+//! Default board: QEMU `mps2-an386` ([`board`]). Logging: defmt over semihosting
+//! (feature `qemu`) or RTT (feature `rtt`). Effects, profile and rate set are fixed at
+//! build time (see `build.rs`).
+
+#![no_std]
+
+#[cfg(all(feature = "qemu", feature = "rtt"))]
+compile_error!("features `qemu` and `rtt` are exclusive: pick one log transport");
+#[cfg(not(any(feature = "qemu", feature = "rtt")))]
+compile_error!("enable feature `qemu` (default) or `rtt`");
+
+#[cfg(feature = "rtt")]
+use defmt_rtt as _;
+#[cfg(feature = "qemu")]
+use defmt_semihosting as _;
+
+pub mod bench;
+pub mod board;
+pub mod clock;
+pub mod io;
+pub mod protocol;
+pub mod step;
+
+use model_core::{Config, CouplingStiffness, Effects, Params, RateSet, SpeedTarget};
+
+mod generated {
+    include!(concat!(env!("OUT_DIR"), "/build_effects.rs"));
+}
+pub use generated::{BUILD_EFFECTS, BUILD_EFFECTS_FILE, BUILD_PROFILE, BUILD_RATES};
+
+/// Bench step [µs]: the PLC's 1 kHz.
+pub const STEP_US: u32 = 1000;
+/// Supply voltage of the basic mode [V].
+pub const SUPPLY_V: f32 = 24.0;
+
+/// The model configuration of this build: bench rate, thesis parameters with `rates`,
+/// identified coupling, speed map, and the effects compiled in.
+pub fn config(rates: RateSet) -> Config {
+    let mut effects = Effects::NONE;
+    for (id, key, v) in BUILD_EFFECTS {
+        if let Err(e) = effects.set(id, key, *v) {
+            // build.rs checked the file with the same code: unreachable unless edited.
+            defmt::panic!("effect {=str}.{=str}: {}", id, key, e);
+        }
+    }
+    if let Err(id) = effects.validate() {
+        defmt::panic!("effect {=str}: invalid parameter", id);
+    }
+    Config {
+        dt_us: STEP_US,
+        params: Params::thesis(rates, CouplingStiffness::Identified),
+        speed_target: SpeedTarget::Map,
+        effects,
+    }
+}
+
+/// QEMU's semihosting command line (`-semihosting-config ...,arg=KEY=VALUE`), read into
+/// `buf`: a test hook to vary a run without another build. Hardware without a
+/// debugger has no semihosting (the call would fault), so there it is always empty.
+pub fn qemu_cmdline(buf: &mut [u8]) -> &str {
+    #[cfg(feature = "qemu")]
+    {
+        use cortex_m_semihosting::{nr, syscall1};
+        let mut block = [buf.as_mut_ptr() as usize, buf.len()];
+        // SAFETY: SYS_GET_CMDLINE writes at most `buf.len()` bytes into `buf` and the
+        // length into `block[1]`; both outlive the call.
+        let r = unsafe { syscall1(nr::GET_CMDLINE, block.as_mut_ptr() as usize) };
+        // SAFETY: `block` is a live local the host wrote behind the compiler's back.
+        let n = unsafe { core::ptr::read_volatile(&block[1]) };
+        if r == 0 {
+            let n = n.min(buf.len());
+            return core::str::from_utf8(buf.get(..n).unwrap_or(&[])).unwrap_or("");
+        }
+    }
+    let _ = buf;
+    ""
+}
+
+/// The value of `key=value` among the whitespace-separated words of `cmdline`.
+pub fn option<'a>(cmdline: &'a str, key: &str) -> Option<&'a str> {
+    cmdline
+        .split_ascii_whitespace()
+        .filter_map(|w| w.split_once('='))
+        .find(|(k, _)| *k == key)
+        .map(|(_, v)| v)
+}
+
+/// Leave: under QEMU a semihosting exit with the status; on hardware a breakpoint on
+/// failure (the probe stops there) and sleep on success.
+pub fn exit(success: bool) -> ! {
+    #[cfg(feature = "qemu")]
+    {
+        use cortex_m_semihosting::debug;
+        debug::exit(if success { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    }
+    if !success {
+        cortex_m::asm::bkpt();
+    }
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    match info.location() {
+        Some(l) => defmt::error!("panic at {=str}:{=u32}", l.file(), l.line()),
+        None => defmt::error!("panic"),
+    }
+    exit(false)
+}
+
+#[defmt::panic_handler]
+fn defmt_panic() -> ! {
+    exit(false)
+}

@@ -1,0 +1,408 @@
+//! Shared by the firmware tests: prerequisites, building the firmware, running it on
+//! QEMU, reading its trace, and the host simulation it must match.
+//!
+//! The firmware is built by a nested `cargo build` into its own target directory,
+//! `target/firmware-tests/build`: the `cargo test` that runs us holds the lock of the
+//! workspace's build directory until the tests end, so building into that one would
+//! wait forever. Variants (effects compiled in or not) share that directory, so their
+//! dependencies are built once; each build's ELFs are copied to
+//! `target/firmware-tests/<variant>/` under a lock before the next build can replace
+//! them. (A mix-up across concurrent test processes would still be caught: the traces
+//! carry the effects they were built with, and the tests check them.)
+
+#![allow(dead_code)] // each test binary uses a part
+
+use std::ffi::OsString;
+use std::fs;
+use std::io::Read as _;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use model_core::{
+    Builtin, Config, CouplingStiffness, Effects, Outputs, Params, Profile, RateSet, Simulation, SpeedTarget,
+};
+
+#[path = "../../../firmware/src/protocol.rs"]
+pub mod protocol;
+
+/// The firmware's target.
+pub const TARGET: &str = "thumbv7em-none-eabihf";
+/// Supply voltage the firmware traces run at (`firmware::SUPPLY_V`).
+pub const SUPPLY_V: f32 = 24.0;
+/// Bench step (`firmware::STEP_US`).
+pub const STEP_US: u32 = 1000;
+/// The rate sets traced, in the firmware's order.
+pub const RATES: [RateSet; 2] = [RateSet::Programmed, RateSet::Identified];
+
+/// The workspace root.
+pub fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("host-tests sits in the workspace").to_path_buf()
+}
+
+fn cargo() -> OsString {
+    std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into())
+}
+
+/// `target/firmware-tests/<sub>` (see the module docs).
+pub fn firmware_target_dir(sub: &str) -> PathBuf {
+    let base = match std::env::var_os("CARGO_TARGET_DIR") {
+        Some(d) if Path::new(&d).is_absolute() => PathBuf::from(d),
+        Some(d) => root().join(d),
+        None => root().join("target"),
+    };
+    base.join("firmware-tests").join(sub)
+}
+
+/// The binaries of the firmware crate.
+pub const BINARIES: [&str; 2] = ["firmware", "simrod-trace"];
+
+/// Serializes build + copy within this test process.
+static BUILD: Mutex<()> = Mutex::new(());
+
+/// Fail, not skip, when a tool the proof needs is missing: a skipped proof looks green.
+pub fn require_tools() {
+    let sysroot = Command::new("rustc")
+        .args(["--print", "sysroot"])
+        .current_dir(root())
+        .output()
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+        .unwrap_or_default();
+    let target_lib = Path::new(&sysroot).join("lib/rustlib").join(TARGET);
+    assert!(
+        target_lib.is_dir(),
+        "the Rust target {TARGET} is not installed (no {}).\n\
+         Install it with: rustup target add {TARGET}",
+        target_lib.display()
+    );
+    match Command::new("qemu-system-arm").arg("--version").stdout(Stdio::null()).status() {
+        Ok(s) if s.success() => {}
+        Ok(s) => panic!("qemu-system-arm --version failed ({s})"),
+        Err(e) => panic!(
+            "qemu-system-arm not found ({e}).\n\
+             Install it with: apt-get install -y qemu-system-arm"
+        ),
+    }
+}
+
+/// Build both firmware binaries (release) with the effects file `effects` compiled in
+/// (or none); the directory `target/firmware-tests/<variant>` holding their ELFs.
+pub fn build_firmware(variant: &str, effects: Option<&Path>) -> PathBuf {
+    require_tools();
+    let _guard = BUILD.lock().unwrap_or_else(|e| e.into_inner());
+    let target_dir = firmware_target_dir("build");
+    let mut cmd = Command::new(cargo());
+    cmd.current_dir(root())
+        .args(["build", "-p", "firmware", "--release", "--bins", "--target", TARGET])
+        .arg("--target-dir")
+        .arg(&target_dir)
+        // Only what .cargo/config.toml says may shape the build.
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_BUILD_RUSTFLAGS")
+        .env_remove("CARGO_BUILD_TARGET")
+        .env_remove("SIMROD_PROFILE")
+        .env_remove("SIMROD_RATES")
+        .env_remove("SIMROD_MEMORY_X");
+    match effects {
+        Some(p) => cmd.env("SIMROD_EFFECTS", p),
+        None => cmd.env_remove("SIMROD_EFFECTS"),
+    };
+    let t0 = Instant::now();
+    let out = cmd.output().expect("run cargo");
+    assert!(
+        out.status.success(),
+        "building the firmware ({variant}) failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    eprintln!("firmware ({variant}) built in {:.1} s", t0.elapsed().as_secs_f64());
+    let built = target_dir.join(TARGET).join("release");
+    let dir = firmware_target_dir(variant);
+    fs::create_dir_all(&dir).expect("create the variant directory");
+    for bin in BINARIES {
+        fs::copy(built.join(bin), dir.join(bin))
+            .unwrap_or_else(|e| panic!("copy {bin} to {}: {e}", dir.display()));
+    }
+    dir
+}
+
+/// What a QEMU run left.
+pub struct QemuRun {
+    pub stdout: Vec<u8>,
+    pub stderr: Vec<u8>,
+    pub wall: Duration,
+}
+
+/// A running QEMU.
+pub struct Qemu {
+    child: std::process::Child,
+    out: std::thread::JoinHandle<Vec<u8>>,
+    err: std::thread::JoinHandle<Vec<u8>>,
+    t0: Instant,
+    elf: PathBuf,
+}
+
+/// Boot `elf` on QEMU's mps2-an386 in `cwd` (semihosting files land there), with
+/// `extra` QEMU arguments and `args` on the semihosting command line. Without a
+/// `-serial` in `extra`, the UART is not connected.
+pub fn spawn_qemu(elf: &Path, cwd: &Path, extra: &[&str], args: &[&str]) -> Qemu {
+    fs::create_dir_all(cwd).expect("create the run directory");
+    let mut semi = String::from("enable=on,target=native,arg=firmware");
+    for a in args {
+        semi.push_str(",arg=");
+        semi.push_str(a);
+    }
+    let mut cmd = Command::new("qemu-system-arm");
+    cmd.args(["-machine", "mps2-an386", "-cpu", "cortex-m4"])
+        .args(["-display", "none", "-monitor", "none"])
+        .args(["-semihosting-config", &semi]);
+    if !extra.contains(&"-serial") {
+        cmd.args(["-serial", "null"]);
+    }
+    cmd.args(extra)
+        .arg("-kernel")
+        .arg(elf)
+        .current_dir(cwd)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let mut child = cmd.spawn().expect("start qemu-system-arm");
+    // Drain the pipes on threads so a chatty firmware cannot block on a full pipe.
+    let mut so = child.stdout.take().expect("piped");
+    let mut se = child.stderr.take().expect("piped");
+    let out = std::thread::spawn(move || {
+        let mut v = Vec::new();
+        let _ = so.read_to_end(&mut v);
+        v
+    });
+    let err = std::thread::spawn(move || {
+        let mut v = Vec::new();
+        let _ = se.read_to_end(&mut v);
+        v
+    });
+    Qemu { child, out, err, t0: Instant::now(), elf: elf.to_path_buf() }
+}
+
+impl Qemu {
+    /// Wait for the exit; fails on a non-zero exit (a firmware panic exits with 1) or
+    /// after `timeout`.
+    pub fn wait(mut self, timeout: Duration) -> QemuRun {
+        let status = loop {
+            if let Some(s) = self.child.try_wait().expect("wait for qemu") {
+                break s;
+            }
+            if self.t0.elapsed() > timeout {
+                let _ = self.child.kill();
+                let _ = self.child.wait();
+                panic!("{} did not finish within {timeout:?} on QEMU", self.elf.display());
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        let run = QemuRun {
+            stdout: self.out.join().unwrap_or_default(),
+            stderr: self.err.join().unwrap_or_default(),
+            wall: self.t0.elapsed(),
+        };
+        assert!(
+            status.success(),
+            "{} failed on QEMU ({status}); a firmware panic exits with 1. Its defmt log \
+             is {} bytes on stdout (decode with `defmt-print -e {}`); QEMU's stderr:\n{}",
+            self.elf.display(),
+            run.stdout.len(),
+            self.elf.display(),
+            String::from_utf8_lossy(&run.stderr)
+        );
+        run
+    }
+}
+
+/// [`spawn_qemu`] without extras, then [`Qemu::wait`].
+pub fn run_qemu(elf: &Path, cwd: &Path, timeout: Duration) -> QemuRun {
+    spawn_qemu(elf, cwd, &[], &[]).wait(timeout)
+}
+
+/// The host configuration the firmware runs (`firmware::config`).
+pub fn config(rates: RateSet, effects: Effects) -> Config {
+    Config {
+        dt_us: STEP_US,
+        params: Params::thesis(rates, CouplingStiffness::Identified),
+        speed_target: SpeedTarget::Map,
+        effects,
+    }
+}
+
+/// The host simulation of one traced run.
+pub fn host_sim(which: Builtin, rates: RateSet, effects: Effects) -> Simulation<'static> {
+    let profile = Profile::builtin(which, 1.0, 1.0).expect("built-in profile");
+    Simulation::new(&config(rates, effects), profile, SUPPLY_V).expect("valid config")
+}
+
+/// FNV-1a 64 over the little-endian bits of every channel of every step.
+pub fn host_hash(which: Builtin, rates: RateSet) -> (u64, u32) {
+    let mut h = protocol::Fnv1a64::default();
+    let mut steps = 0;
+    for o in host_sim(which, rates, Effects::NONE) {
+        h.write_f32s(&o.values);
+        steps += 1;
+    }
+    (h.0, steps)
+}
+
+/// Lower-case name of a rate set, as in the golden file and messages.
+pub fn rates_name(r: RateSet) -> &'static str {
+    match r {
+        RateSet::Programmed => "programmed",
+        RateSet::Identified => "identified",
+    }
+}
+
+/// One run of a trace file.
+pub struct TraceRun {
+    pub profile: Builtin,
+    pub rates: RateSet,
+    pub n_steps: u32,
+    /// Byte range of the step records in the file.
+    pub records: std::ops::Range<usize>,
+    /// The firmware's own FNV-1a 64 over the channel bits.
+    pub hash: u64,
+}
+
+/// A parsed trace file (format in `firmware/src/protocol.rs`).
+pub struct Trace {
+    pub bytes: Vec<u8>,
+    pub n_channels: usize,
+    pub dt_us: u32,
+    pub effects: Vec<(String, String, f32)>,
+    pub runs: Vec<TraceRun>,
+}
+
+struct Cursor<'a> {
+    b: &'a [u8],
+    pos: usize,
+}
+
+impl Cursor<'_> {
+    fn take(&mut self, n: usize) -> &[u8] {
+        let s = self.b.get(self.pos..self.pos + n).unwrap_or_else(|| {
+            panic!("trace truncated at byte {} (wanted {n} more of {})", self.pos, self.b.len())
+        });
+        self.pos += n;
+        s
+    }
+    fn u8(&mut self) -> u8 {
+        self.take(1)[0]
+    }
+    fn u16(&mut self) -> u16 {
+        u16::from_le_bytes(self.take(2).try_into().unwrap())
+    }
+    fn u32(&mut self) -> u32 {
+        u32::from_le_bytes(self.take(4).try_into().unwrap())
+    }
+    fn u64(&mut self) -> u64 {
+        u64::from_le_bytes(self.take(8).try_into().unwrap())
+    }
+    fn magic(&mut self, m: &[u8], what: &str) {
+        let at = self.pos;
+        let got = self.take(m.len()).to_vec();
+        assert_eq!(got, m, "trace: expected {what} at byte {at}");
+    }
+    fn string(&mut self) -> String {
+        let n = usize::from(self.u8());
+        String::from_utf8(self.take(n).to_vec()).expect("utf-8 name")
+    }
+}
+
+/// Read and check the structure of a trace file.
+pub fn read_trace(path: &Path) -> Trace {
+    let bytes = fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut c = Cursor { b: &bytes, pos: 0 };
+    c.magic(&protocol::TRACE_MAGIC, "the trace magic");
+    let n_channels = usize::from(c.u16());
+    let dt_us = c.u32();
+    let n_fx = c.u16();
+    let effects = (0..n_fx)
+        .map(|_| {
+            let id = c.string();
+            let key = c.string();
+            (id, key, f32::from_bits(c.u32()))
+        })
+        .collect();
+    let record = 8 + 4 * n_channels;
+    let mut runs = Vec::new();
+    loop {
+        let at = c.pos;
+        let tag = c.take(4).to_vec();
+        if tag == protocol::DONE_MAGIC {
+            let n = c.u32() as usize;
+            assert_eq!(n, runs.len(), "trace: run count in the trailer");
+            assert_eq!(c.pos, bytes.len(), "trace: bytes after the trailer");
+            break;
+        }
+        assert_eq!(tag, protocol::RUN_MAGIC, "trace: expected a run at byte {at}");
+        let name = c.take(8).to_vec();
+        let name = String::from_utf8_lossy(&name).trim_end_matches('\0').to_string();
+        let profile = Builtin::from_name(&name).unwrap_or_else(|| panic!("unknown {name}"));
+        let rates = match c.u8() {
+            0 => RateSet::Programmed,
+            1 => RateSet::Identified,
+            r => panic!("trace: bad rate set {r}"),
+        };
+        let n_steps = c.u32();
+        let start = c.pos;
+        c.take(record * n_steps as usize);
+        let records = start..c.pos;
+        c.magic(&protocol::END_MAGIC, "the end of a run");
+        let hash = c.u64();
+        runs.push(TraceRun { profile, rates, n_steps, records, hash });
+    }
+    Trace { n_channels, dt_us, effects, runs, bytes }
+}
+
+/// Step `k` of a run: `t_us` and the channel bits.
+pub fn record(trace: &Trace, run: &TraceRun, k: usize) -> (u64, Vec<u32>) {
+    let size = 8 + 4 * trace.n_channels;
+    let r = &trace.bytes[run.records.start + k * size..][..size];
+    let t = u64::from_le_bytes(r[..8].try_into().unwrap());
+    let bits = r[8..].chunks_exact(4).map(|b| u32::from_le_bytes(b.try_into().unwrap())).collect();
+    (t, bits)
+}
+
+/// Compare one run bit for bit with the host; the number of steps compared. Panics
+/// at the first difference with step, time, channel and both values.
+pub fn compare_run(trace: &Trace, run: &TraceRun, effects: Effects) -> usize {
+    let label = format!("{} {}", run.profile.name(), rates_name(run.rates));
+    let host: Vec<Outputs> = host_sim(run.profile, run.rates, effects).collect();
+    assert_eq!(
+        run.n_steps as usize,
+        host.len(),
+        "{label}: firmware ran {} steps, host {}",
+        run.n_steps,
+        host.len()
+    );
+    let mut h = protocol::Fnv1a64::default();
+    for (k, o) in host.iter().enumerate() {
+        let (t_us, bits) = record(trace, run, k);
+        assert_eq!(t_us, o.t_us, "{label}: step {k}: firmware t_us {t_us}, host {}", o.t_us);
+        for (c, (fw, hv)) in bits.iter().zip(o.values.iter()).enumerate() {
+            if *fw != hv.to_bits() {
+                let ch = model_core::Channel::ALL[c];
+                panic!(
+                    "{label}: first difference at step {k} (t = {t_us} us), channel {} ({}):\n  \
+                     firmware {:e} (0x{fw:08x})\n  host     {:e} (0x{:08x})",
+                    ch.name(),
+                    ch.unit(),
+                    f32::from_bits(*fw),
+                    hv,
+                    hv.to_bits()
+                );
+            }
+        }
+        h.write_f32s(&o.values);
+    }
+    assert_eq!(
+        run.hash, h.0,
+        "{label}: the firmware's own hash differs from the host's though every record matched"
+    );
+    host.len()
+}

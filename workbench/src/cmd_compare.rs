@@ -1,0 +1,147 @@
+//! `simrod compare MEAS`: run the twin on a measured run's inputs and show where model
+//! and measurement disagree (terminal table, `--json`, `--report DIR`).
+//!
+//! Arguments and files are checked before the comparison runs (exit code 2, as for
+//! every bad input); only writing the report can fail afterwards (exit code 1).
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use clap::Args;
+use model_core::{Builtin, Effects};
+
+use crate::compare::{compare, CompareOptions, InputSource};
+use crate::effects_file::load_effects;
+use crate::error::CmdError;
+use crate::measure::{self, LoadOptions, Mapping};
+use crate::report::{html, json, table};
+use crate::simulate::{parse_builtin, parse_scale, parse_supply_v, CouplingArg, RatesArg, SpeedTargetArg};
+
+/// Arguments of `simrod compare`.
+#[derive(Debug, Clone, Args)]
+pub struct CompareArgs {
+    /// Measured run: .csv (also .txt, .tsv) or .mat, as `simrod bench` writes them.
+    #[arg(value_name = "MEAS")]
+    pub meas: PathBuf,
+
+    /// Effect file (TOML) switching on effects in the twin.
+    #[arg(long, value_name = "FILE.toml")]
+    pub effects: Option<PathBuf>,
+
+    /// Curtis rate parameters of the twin: programmed (table 5.16) or identified (5.17).
+    #[arg(long, value_enum, default_value_t = RatesArg::Identified)]
+    pub params: RatesArg,
+
+    /// Target speed from the identified map, or from the Max Speed parameter.
+    #[arg(long, value_enum, default_value_t = SpeedTargetArg::Map)]
+    pub speed_target: SpeedTargetArg,
+
+    /// Coupling stiffness: identified (4369 N m/rad) or datasheet (10310 N m/rad).
+    #[arg(long, value_enum, default_value_t = CouplingArg::Identified)]
+    pub coupling: CouplingArg,
+
+    /// Mapping file (TOML) renaming/scaling the file's channels to bench names.
+    #[arg(long, value_name = "FILE")]
+    pub mapping: Option<PathBuf>,
+
+    /// Interpolate across gaps in the time axis instead of refusing the file.
+    #[arg(long)]
+    pub allow_gaps: bool,
+
+    /// DPU voltage set point [V] (12..=30); the busbar voltage is compared, not used.
+    #[arg(long, value_name = "V", default_value_t = 24.0, value_parser = parse_supply_v)]
+    pub supply_v: f32,
+
+    /// Drive the twin from a built-in profile instead of the file's set-point channels
+    /// (for files without `SuT Throttle`, `Dm Left`, `Dm Right`).
+    #[arg(long, value_name = "NAME", value_parser = parse_builtin)]
+    pub profile: Option<Builtin>,
+
+    /// Throttle scale of `--profile`, in [-1.5, 1.5].
+    #[arg(long, value_name = "X", requires = "profile", allow_negative_numbers = true, value_parser = parse_scale)]
+    pub throttle_scale: Option<f32>,
+
+    /// Load scale of `--profile`, in [-1.5, 1.5].
+    #[arg(long, value_name = "Y", requires = "profile", allow_negative_numbers = true, value_parser = parse_scale)]
+    pub load_scale: Option<f32>,
+
+    /// Width of the worst-span windows [s].
+    #[arg(long, value_name = "S", default_value_t = 2.0, value_parser = parse_window)]
+    pub window_s: f64,
+
+    /// Print the comparison as JSON on stdout instead of the table.
+    #[arg(long)]
+    pub json: bool,
+
+    /// Also write DIR/index.html (self-contained; DIR is created if missing).
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
+}
+
+/// `--window-s` value: finite and > 0.
+pub fn parse_window(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err("expected a window length in seconds, > 0".into()),
+    }
+}
+
+/// Run `simrod compare`.
+pub fn execute(args: &CompareArgs) -> Result<(), CmdError> {
+    let effects = match &args.effects {
+        Some(p) => load_effects(p)?,
+        None => Effects::NONE,
+    };
+    let load_opts = LoadOptions {
+        mapping: args.mapping.as_deref().map(Mapping::load).transpose()?,
+        allow_gaps: args.allow_gaps,
+        ..LoadOptions::default()
+    };
+    let loaded = measure::load_with(&args.meas, &load_opts)?;
+    let inputs = match args.profile {
+        Some(which) => InputSource::Profile {
+            which,
+            throttle_scale: args.throttle_scale.unwrap_or(1.0),
+            load_scale: args.load_scale.unwrap_or(1.0),
+        },
+        None => InputSource::Recorded,
+    };
+    let opts = CompareOptions {
+        effects,
+        rates: args.params.into(),
+        speed_target: args.speed_target.into(),
+        coupling: args.coupling.into(),
+        supply_v: args.supply_v,
+        inputs,
+        window_s: args.window_s,
+        ..CompareOptions::default()
+    };
+    let mut result = compare(&loaded.measurement, &opts)
+        .map_err(|e| CmdError::Usage(format!("{}: {e}", args.meas.display())))?;
+    let mut notes: Vec<String> = loaded.notes.clone();
+    if let Some(p) = &args.effects {
+        notes.push(format!("twin effects from {}", p.display()));
+    }
+    notes.append(&mut result.notes);
+    result.notes = notes;
+
+    let text = if args.json {
+        let mut s = serde_json::to_string_pretty(&json::to_json(&result))
+            .map_err(|e| CmdError::Runtime(format!("JSON: {e}")))?;
+        s.push('\n');
+        s
+    } else {
+        table::render(&result)
+    };
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .map_err(|e| CmdError::Runtime(format!("stdout: {e}")))?;
+    if let Some(dir) = &args.report {
+        let path = html::write_report(dir, &result)
+            .map_err(|e| CmdError::Runtime(format!("{}: {e}", dir.display())))?;
+        // Keep stdout pure JSON under --json.
+        eprintln!("report: {}", path.display());
+    }
+    Ok(())
+}

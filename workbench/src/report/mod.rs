@@ -1,0 +1,55 @@
+//! Presenting a comparison: a terminal table, JSON for scripts, and a self-contained
+//! HTML report with hand-written SVG charts.
+
+pub mod html;
+pub mod json;
+pub mod svg;
+pub mod table;
+
+/// A number with about 4 significant digits, for tables and captions.
+pub fn num(v: f64) -> String {
+    if !v.is_finite() {
+        return "-".into();
+    }
+    let a = v.abs();
+    if a == 0.0 {
+        "0".into()
+    } else if !(1e-3..1e6).contains(&a) {
+        format!("{v:.3e}")
+    } else if a >= 1000.0 {
+        format!("{v:.0}")
+    } else if a >= 100.0 {
+        format!("{v:.1}")
+    } else if a >= 10.0 {
+        format!("{v:.2}")
+    } else if a >= 1.0 {
+        format!("{v:.3}")
+    } else {
+        format!("{v:.4}")
+    }
+}
+
+/// A 0..1 share as a percentage.
+pub fn pct(v: f64) -> String {
+    if !v.is_finite() {
+        "-".into()
+    } else {
+        format!("{:.0} %", 100.0 * v)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_are_short() {
+        assert_eq!(num(0.0), "0");
+        assert_eq!(num(2.0), "2.000");
+        assert_eq!(num(-12.345), "-12.35");
+        assert_eq!(num(1234.4), "1234");
+        assert_eq!(num(1.5e-7), "1.500e-7");
+        assert_eq!(num(f64::NAN), "-");
+        assert_eq!(pct(0.724), "72 %");
+    }
+}
