@@ -97,6 +97,41 @@ pub fn option<'a>(cmdline: &'a str, key: &str) -> Option<&'a str> {
         .map(|(_, v)| v)
 }
 
+extern "C" {
+    // From cortex-m-rt's link.x: the stack grows down from `_stack_start` towards
+    // `_stack_end`, the end of the statics.
+    static _stack_start: u32;
+    static _stack_end: u32;
+}
+
+/// Pattern left in the unused stack by [`paint_stack`].
+const STACK_PAINT: u32 = 0x5354_4b21;
+
+/// Fill the free stack (below the current frame) with a pattern, so
+/// [`stack_high_water`] can tell later how deep the stack ever went.
+pub fn paint_stack() {
+    let end = core::ptr::addr_of!(_stack_end) as usize;
+    let sp = cortex_m::register::msp::read() as usize;
+    let mut p = end;
+    // Keep clear of the live frame of this function.
+    while p + 256 < sp {
+        // SAFETY: `[end, sp - 256)` is RAM below every live frame: unused stack.
+        unsafe { core::ptr::write_volatile(p as *mut u32, STACK_PAINT) };
+        p += 4;
+    }
+}
+
+/// Bytes of stack used at most since [`paint_stack`].
+pub fn stack_high_water() -> u32 {
+    let (end, top) = (core::ptr::addr_of!(_stack_end) as usize, core::ptr::addr_of!(_stack_start) as usize);
+    let mut p = end;
+    // SAFETY: `[end, top)` is the stack region, always mapped RAM.
+    while p < top && unsafe { core::ptr::read_volatile(p as *const u32) } == STACK_PAINT {
+        p += 4;
+    }
+    (top - p) as u32
+}
+
 /// Leave: under QEMU a semihosting exit with the status; on hardware a breakpoint on
 /// failure (the probe stops there) and sleep on success.
 pub fn exit(success: bool) -> ! {

@@ -64,6 +64,8 @@ fn isr_clock() -> impl CycleCounter {
 }
 
 /// Basic mode or XiL, chosen at start.
+// One instance, living in `main`'s frame for the whole run; no heap to box into.
+#[allow(clippy::large_enum_variant)]
 enum Source {
     Profile(ProfileSource),
     Serial(SerialSource<UartRx>),
@@ -80,6 +82,7 @@ impl SetPointSource for Source {
 
 #[entry]
 fn main() -> ! {
+    firmware::paint_stack();
     let Some(mut cp) = cortex_m::Peripherals::take() else {
         defmt::panic!("core peripherals taken twice");
     };
@@ -160,6 +163,7 @@ fn main() -> ! {
         sink.dropped,
         received,
         rejected,
+        firmware::stack_high_water(),
     ];
     let mut payload = [0u8; 4 * protocol::STATS_FIELDS.len()];
     for (d, v) in payload.chunks_exact_mut(4).zip(fields) {

@@ -26,7 +26,7 @@ pub const KIND_OUTPUTS: u8 = b'O';
 /// Statistics frame kind.
 pub const KIND_STATS: u8 = b'S';
 /// The `u32` fields of a statistics frame, in order.
-pub const STATS_FIELDS: [&str; 11] = [
+pub const STATS_FIELDS: [&str; 12] = [
     "steps",
     "late",
     "overruns",
@@ -38,6 +38,7 @@ pub const STATS_FIELDS: [&str; 11] = [
     "frames_dropped",
     "inputs_received",
     "inputs_rejected",
+    "stack_bytes",
 ];
 /// Payload bytes of a set-point frame.
 pub const INPUTS_LEN: usize = 16;

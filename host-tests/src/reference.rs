@@ -384,6 +384,8 @@ pub struct Reference {
     cmd_rpm: f64,
     /// [W] rate-limited SuT inverter and load powers.
     p_sut: f64,
+    /// Absorbed mechanical power, through the SuT power ramp limiter.
+    p_mech_ref: f64,
     p_load: [f64; 2],
 }
 
@@ -406,6 +408,7 @@ impl Reference {
             x: [0.0; NX],
             cmd_rpm: 0.0,
             p_sut: 0.0,
+            p_mech_ref: 0.0,
             p_load: [0.0; 2],
         }
     }
@@ -515,19 +518,26 @@ impl Reference {
         }
     }
 
-    /// Electrical power [W] the SuT inverter draws beyond its map: the mechanical power
-    /// the motor delivers minus what the mapped friction and load motors absorb at the
-    /// load-side speeds (zero in a steady state), through the drive's efficiency.
-    fn unmapped_power(&self, sp: &SetPoints) -> f64 {
+    /// Mechanical power [W] the mapped friction and load motors absorb at the load-side
+    /// speeds.
+    fn absorbed_power(&self, sp: &SetPoints) -> f64 {
         let x = &self.x;
-        let (t_motor, _) = self.pid(x, self.cmd_rpm);
         let mut absorbed = 0.0;
         for side in 0..2 {
             let w_l = x[side * SIDE + W_L];
             let friction = self.tab.friction[side].at(w_l * RPM_PER_RAD_S);
             absorbed += (friction + self.load_torque(side, sp, w_l)) * w_l;
         }
-        let p_mech = t_motor * self.motor_speed(x) - absorbed;
+        absorbed
+    }
+
+    /// Electrical power [W] the SuT inverter draws beyond its map: the mechanical power
+    /// the motor delivers minus the absorbed power (followed through the map's ramp
+    /// limiter, so map and reference move together), through the drive's efficiency.
+    fn unmapped_power(&self, _sp: &SetPoints) -> f64 {
+        let x = &self.x;
+        let (t_motor, _) = self.pid(x, self.cmd_rpm);
+        let p_mech = t_motor * self.motor_speed(x) - self.p_mech_ref;
         if p_mech > 0.0 {
             p_mech / self.s.sut_efficiency
         } else {
@@ -609,6 +619,8 @@ impl Reference {
         let load_mean = 0.5 * (sp_end.load[0] + sp_end.load[1]);
         let sut_target = self.tab.sut_power.at(sp_end.throttle, load_mean);
         self.p_sut = ramp_towards(self.p_sut, sut_target, self.s.sut_power_rate * h);
+        let absorbed = self.absorbed_power(&sp_end);
+        self.p_mech_ref = ramp_towards(self.p_mech_ref, absorbed, self.s.sut_power_rate * h);
         for side in 0..2 {
             let target = self.tab.load_power[side].at(sp_end.throttle, sp_end.load[side]);
             self.p_load[side] = ramp_towards(self.p_load[side], target, self.s.load_power_rate * h);

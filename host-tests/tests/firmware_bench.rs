@@ -153,6 +153,11 @@ fn bench_loop_keeps_1_khz_and_streams_the_host_bits() {
     for f in ["late", "overruns", "missed_ticks", "frames_dropped"] {
         assert_eq!(stats.get(f), 0, "{f} at the bench rate: {stats}");
     }
+    // The model, profile and buffers live on the stack (no heap, few statics): what
+    // the RAM must hold beyond .data/.bss. memory.x gives 128 KiB.
+    let stack = stats.get("stack_bytes");
+    assert!(stack > 1024 && stack < 64 * 1024, "stack high-water {stack} bytes");
+    eprintln!("stack high-water: {stack} bytes");
     let mean_us = f64::from(stats.get("mean_step_cycles")) / CYCLES_PER_US;
     let max_us = f64::from(stats.get("max_step_cycles")) / CYCLES_PER_US;
     // Headroom: a step (model + profile + frame encoding) must fit a tenth of the

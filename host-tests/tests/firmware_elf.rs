@@ -150,8 +150,11 @@ impl Elf {
     }
 }
 
-/// Branches out of a function: direct targets, and indirect branches (address, what).
-fn branches(elf: &Elf, f: &Func) -> (Vec<u64>, Vec<(u64, String)>) {
+/// Branches out of a function: direct ones (address, target), and indirect ones
+/// (address, what).
+type Branches = (Vec<(u64, u64)>, Vec<(u64, String)>);
+
+fn branches(elf: &Elf, f: &Func) -> Branches {
     let sext = |v: u32, bits: u32| -> i64 { ((v << (32 - bits)) as i32 >> (32 - bits)) as i64 };
     let (mut direct, mut indirect) = (Vec::new(), Vec::new());
     let end = f.addr + f.size;
@@ -162,7 +165,7 @@ fn branches(elf: &Elf, f: &Func) -> (Vec<u64>, Vec<(u64, String)>) {
             continue;
         }
         let Some(h1) = elf.half(pc) else { break };
-        let target = |off: i64| (pc as i64 + 4 + off) as u64;
+        let target = |off: i64| (pc, (pc as i64 + 4 + off) as u64);
         if matches!(h1 >> 11, 0b11101..=0b11111) {
             let Some(h2) = elf.half(pc + 2) else { break };
             let (h1w, h2w) = (u32::from(h1), u32::from(h2));
@@ -184,7 +187,7 @@ fn branches(elf: &Elf, f: &Func) -> (Vec<u64>, Vec<(u64, String)>) {
                 } else if h2 & 0x5000 == 0x4000 {
                     indirect.push((pc, "BLX to ARM state".to_string()));
                 }
-            } else if h1 & 0xFFF0 == 0xF8D0 && h2 >> 12 == 0xF || h1 == 0xF85F && h2 >> 12 == 0xF {
+            } else if h2 >> 12 == 0xF && (h1 & 0xFFF0 == 0xF8D0 || h1 == 0xF85F) {
                 indirect.push((pc, "LDR pc".to_string()));
             }
             pc += 4;
@@ -233,15 +236,16 @@ struct Reach {
 
 fn reach(elf: &Elf, root: &str) -> Reach {
     let r = elf.func_named(root);
-    let mut parent: BTreeMap<usize, usize> = BTreeMap::new();
+    // Function -> (caller, address of the branch in the caller).
+    let mut parent: BTreeMap<usize, (usize, u64)> = BTreeMap::new();
     let mut queue = VecDeque::from([r]);
     let mut seen = vec![r];
     let (mut indirect, mut unresolved) = (Vec::new(), Vec::new());
-    let chain = |parent: &BTreeMap<usize, usize>, mut i: usize| {
+    let chain = |parent: &BTreeMap<usize, (usize, u64)>, mut i: usize| {
         let mut c = vec![elf.funcs[i].name.clone()];
-        while let Some(p) = parent.get(&i) {
+        while let Some((p, at)) = parent.get(&i) {
             i = *p;
-            c.push(elf.funcs[i].name.clone());
+            c.push(format!("{} (branch at {at:#x})", elf.funcs[i].name));
         }
         c.reverse();
         c
@@ -257,13 +261,13 @@ fn reach(elf: &Elf, root: &str) -> Reach {
         for (pc, what) in ind {
             indirect.push(format!("{what} at {pc:#x} in {}", f.name));
         }
-        for t in direct {
+        for (at, t) in direct {
             match elf.func_at(t) {
                 Some(j) if j == i => {}
                 Some(j) => {
                     if !seen.contains(&j) {
                         seen.push(j);
-                        parent.insert(j, i);
+                        parent.insert(j, (i, at));
                         queue.push_back(j);
                     }
                 }
@@ -279,6 +283,15 @@ const ROOTS: [&str; 2] = ["simrod_step", "simrod_profile_at"];
 #[test]
 fn step_links_no_panic_path_and_no_allocator() {
     let dir = fw::build_firmware("plain", None);
+    // Positive control: the check must see the canary's bounds check.
+    let elf = load(&dir.join("simrod-trace"));
+    let r = reach(&elf, "simrod_canary_index");
+    let chain = r.panic_chain.expect(
+        "the ELF check missed the panic of simrod_canary_index's unchecked index: \
+         it would miss one in the step too",
+    );
+    assert!(chain.last().is_some_and(|n| n.contains("panic_bounds_check")), "{chain:?}");
+    eprintln!("canary found: {}", chain.join(" -> "));
     for bin in fw::BINARIES {
         let elf = load(&dir.join(bin));
         let alloc: Vec<&String> = elf
@@ -303,8 +316,10 @@ fn step_links_no_panic_path_and_no_allocator() {
             if let Some(c) = &r.panic_chain {
                 panic!(
                     "{bin}: `{root}` can reach a panic: {}\n(an unwrap, an unchecked \
-                     index, a clamp with unproven bounds...? the step must not stop the bench)",
-                    c.join(" -> ")
+                     index, a clamp with unproven bounds...? the step must not stop the bench.)\n\
+                     Source lines: llvm-addr2line -i -f -C -e {} <branch address>",
+                    c.join(" -> "),
+                    dir.join(bin).display()
                 );
             }
             assert!(
@@ -320,13 +335,4 @@ fn step_links_no_panic_path_and_no_allocator() {
             eprintln!("{bin}: {root} reaches {} functions, no panic: {}", list.len(), list.join(", "));
         }
     }
-    // Positive control: the check must see the canary's bounds check.
-    let elf = load(&dir.join("simrod-trace"));
-    let r = reach(&elf, "simrod_canary_index");
-    let chain = r.panic_chain.expect(
-        "the ELF check missed the panic of simrod_canary_index's unchecked index: \
-         it would miss one in the step too",
-    );
-    assert!(chain.last().is_some_and(|n| n.contains("panic_bounds_check")), "{chain:?}");
-    eprintln!("canary found: {}", chain.join(" -> "));
 }

@@ -26,9 +26,9 @@ impl Pid {
         let unsat = p.pid_kp * e + self.integ - p.pid_kd * self.d_filt;
         let pushing_out = (unsat > lim && e > 0.0) || (unsat < -lim && e < 0.0);
         if !pushing_out {
-            self.integ = (self.integ + p.pid_ki * e * dt).clamp(-lim, lim);
+            self.integ = crate::num::clamp(self.integ + p.pid_ki * e * dt, -lim, lim);
         }
-        unsat.clamp(-lim, lim)
+        crate::num::clamp(unsat, -lim, lim)
     }
 }
 

@@ -97,7 +97,7 @@ pub fn ramp_rate(
 #[inline]
 pub fn advance(cmd_rpm: f32, target_rpm: f32, rate_rpm_s: f32, dt_s: f32) -> f32 {
     let max = rate_rpm_s * dt_s;
-    cmd_rpm + (target_rpm - cmd_rpm).clamp(-max, max)
+    cmd_rpm + crate::num::clamp(target_rpm - cmd_rpm, -max, max)
 }
 
 /// [`advance`] on a compensated command `hi + lo`: a ramp adds a small increment every
@@ -110,7 +110,7 @@ pub fn advance_compensated(hi: f32, lo: f32, target_rpm: f32, rate_rpm_s: f32, d
     if gap <= max && gap >= -max {
         return (target_rpm, 0.0);
     }
-    let step = gap.clamp(-max, max) + lo;
+    let step = crate::num::clamp(gap, -max, max) + lo;
     crate::drivetrain::two_sum(hi, step)
 }
 

@@ -13,7 +13,7 @@ impl RateLimiter {
     /// Move towards `target` by at most `max_step`.
     #[inline]
     pub fn update(&mut self, target: f32, max_step: f32) -> f32 {
-        self.y += (target - self.y).clamp(-max_step, max_step);
+        self.y += crate::num::clamp(target - self.y, -max_step, max_step);
         self.y
     }
 }

@@ -38,6 +38,7 @@ pub mod effects;
 pub mod electrics;
 mod expm;
 pub mod model;
+mod num;
 pub mod outputs;
 pub mod params;
 pub mod profile;

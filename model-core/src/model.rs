@@ -129,6 +129,8 @@ pub struct Model<'a> {
     /// Low part of the compensated speed command.
     cmd_lo: f32,
     p_sut: RateLimiter,
+    /// The mapped mechanical power, through the same rate limiter as the SuT power map.
+    p_mech_ref: RateLimiter,
     p_load: [RateLimiter; 2],
     delay: [f32; DELAY_CAPACITY],
     delay_len: usize,
@@ -227,6 +229,7 @@ impl<'a> Model<'a> {
             cmd_rpm: 0.0,
             cmd_lo: 0.0,
             p_sut: RateLimiter::default(),
+            p_mech_ref: RateLimiter::default(),
             p_load: [RateLimiter::default(); 2],
             delay: [0.0; DELAY_CAPACITY],
             delay_len: delay_steps.min(DELAY_CAPACITY),
@@ -413,7 +416,10 @@ impl<'a> Model<'a> {
         // absorb (accelerating inertias, charging springs, losses the thesis model lacks)
         // reaches the inverter through the drive's efficiency. Zero in a steady state of
         // the thesis model, so the identified map is reproduced exactly there.
-        let p_unmapped = t_motor * w_motor - p_mapped_mech;
+        // The reference moves through the map's rate limiter: a load step changes the map
+        // and its mechanical counterpart together, not one instantly and one slowly.
+        let p_ref = self.p_mech_ref.update(p_mapped_mech, p.sut_power_rate_w_per_s * dt);
+        let p_unmapped = t_motor * w_motor - p_ref;
         let p_unmapped_el = if p_unmapped > 0.0 {
             p_unmapped / p.sut_drive_efficiency
         } else {

@@ -38,7 +38,7 @@ pub fn target_speed_rpm(
         }
         SpeedTarget::Parameter => mapped_pct * 0.01 * p.max_speed_rpm.get(d).copied().unwrap_or(0.0),
     };
-    let mag = mag.clamp(0.0, limit);
+    let mag = crate::num::clamp(mag, 0.0, limit);
     if d == 0 {
         mag
     } else {

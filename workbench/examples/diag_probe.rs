@@ -1,53 +1,48 @@
-//! Exploratory: hide one effect in a noisy TP07 run and diagnose it blind.
-//! `cargo run --release -p workbench --example diag_probe -- differential_friction coulomb_nm 4`
-use model_core::{Builtin, Config, Effects, Profile};
+//! Exploratory: hide effects in a virtual-bench run (realistic measurement chain) and
+//! diagnose blind. `PROFILE=TP07 SEED=1 cargo run --release -p workbench --example diag_probe -- effect param value ...`
+use model_core::{Builtin, Config, Effects, Inputs, Profile, SetPoints, Simulation};
 use std::time::Instant;
 use workbench::diagnose::{self, twin::*, Options};
+use workbench::vbench::chain::{measure, ChainOptions, Recorded};
+use workbench::vbench::noise::NoiseModel;
 
 fn main() {
-    let a: Vec<String> = std::env::args().collect();
+    let a: Vec<String> = std::env::args().skip(1).collect();
     let mut truth = Effects::NONE;
-    let mut i = 1;
-    while i + 2 < a.len() + 1 && i + 2 <= a.len() - 1 + 1 && a.len() > i + 2 {
-        truth.set(&a[i], &a[i + 1], a[i + 2].parse().unwrap()).unwrap();
-        i += 3;
+    for t in a.chunks(3) {
+        truth.set(&t[0], &t[1], t[2].parse().unwrap()).unwrap();
     }
-    let profile = std::env::var("PROFILE").unwrap_or("TP07".into());
-    let b = Builtin::from_name(&profile).unwrap();
+    let env = |k: &str, d: &str| std::env::var(k).unwrap_or(d.into());
+    let b = Builtin::from_name(&env("PROFILE", "TP07")).unwrap();
+    let (ts, ls): (f32, f32) = (env("TS", "1").parse().unwrap(), env("LS", "1").parse().unwrap());
+    let seed: u64 = env("SEED", "1").parse().unwrap();
     let cfg = Config::default();
-    let inputs = profile_inputs(&Profile::builtin(b, 1.0, 1.0).unwrap(), 1000, 24.0);
-    let twin = RecordedTwin { config: cfg, inputs, channels: fitted_channels() };
-    let clean = diagnose::Twin::run(&twin, &truth).unwrap();
-    // Gaussian noise per channel (sigma roughly as the virtual bench's defaults).
-    let sig = [2.0, 0.5, 0.5, 1.0, 1.0, 1.0, 0.25, 0.25, 0.25, 1.0, 0.02, 1.0, 0.02];
-    let mut s: u64 = 12345;
-    let mut u = || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let meas: Vec<Vec<f64>> = clean
-        .iter()
-        .zip(sig)
-        .map(|(c, sg)| {
-            c.iter()
-                .map(|v| {
-                    let g = (-2.0 * u().max(1e-300).ln()).sqrt() * (2.0 * std::f64::consts::PI * u()).cos();
-                    f64::from(*v) + sg * g
-                })
-                .collect()
+    let profile = Profile::builtin(b, ts, ls).unwrap();
+    let rec = Recorded::run(Simulation::new(&Config { effects: truth, ..cfg }, profile, 24.0).unwrap());
+    let noise = if env("NOISE", "default") == "none" { None } else { Some(NoiseModel::default()) };
+    let m = measure(&rec, &ChainOptions { noise, seed, miscount: false }, std::path::Path::new("x.csv"));
+    let channels = fitted_channels();
+    let meas: Vec<Vec<f64>> = channels.iter().map(|c| m.signal(c.name()).unwrap().values.clone()).collect();
+    let inputs: Vec<Inputs> = (0..rec.t_us.len())
+        .map(|k| Inputs {
+            sp: SetPoints {
+                throttle_pct: rec.setpoints[0][k],
+                load_pct: [rec.setpoints[1][k], rec.setpoints[2][k]],
+            },
+            supply_v: 24.0,
         })
         .collect();
+    let win: f64 = env("WIN", "0.1").parse().unwrap();
+    let twin = RecordedTwin { config: cfg, inputs, channels: channels.clone(), speed_window_s: win };
     let t0 = Instant::now();
-    let probe = BuiltinProbe::standard(cfg, fitted_channels());
+    let probe = BuiltinProbe::standard(cfg, channels, win);
     let d = diagnose::diagnose(&twin, &meas, &Options::default(), Some(&probe)).unwrap();
     println!("{:.2} s  ratio {:.2}\n{}", t0.elapsed().as_secs_f64(), d.excess_ratio, d.verdict);
-    for c in d.ranking.iter().take(6) {
+    for c in d.ranking.iter().take(4) {
         let ps: Vec<String> =
             c.params.iter().map(|p| format!("{}={:.4}±{:.4}", p.name, p.value, 1.96 * p.std)).collect();
         println!(
-            "  {:24} pred {:6.3} conf {:?} sig {} {}",
+            "  {:24} pred {:5.3} conf {:?} sig {} {}",
             c.effect,
             c.predicted_reduction,
             c.confirmed_reduction.map(|v| (v * 1000.0).round() / 1000.0),
@@ -55,5 +50,7 @@ fn main() {
             ps.join(" ")
         );
     }
-    println!("selected {:?}\nconfounded {:?}", d.selected, d.confounded);
+    if std::env::var("NOISEPRINT").is_ok() {
+        println!("noise {:?}", d.noise);
+    }
 }

@@ -17,8 +17,30 @@ use crate::measure::{self, LoadOptions, Mapping};
 use crate::report::{html, json, table};
 use crate::simulate::{parse_builtin, parse_scale, parse_supply_v, CouplingArg, RatesArg, SpeedTargetArg};
 
+/// What `simrod compare --help` explains after the options.
+const HOW: &str = "\
+How the comparison is made:
+  Inputs    the file's set points (SuT Throttle, Dm Left, Dm Right [%]) drive the twin; row k is
+            the end of a step and its set points are the ones held over that step (as `simrod
+            bench` writes). The twin starts at rest one step before the first row. --profile
+            drives it from a built-in profile instead (profile time = row time - one step).
+  Step      the file's sample interval when it is a whole number of µs in 10..=10000 µs and
+            uniform; otherwise the file is resampled (linear) to 1 ms and the twin runs at 1 ms.
+  Residual  sim - meas. NRMSE = RMSE / (max - min of the measurement, at least 1 % of its RMS).
+            fit = 100 (1 - |e| / |y - mean y|); r2 = 1 - sum e^2 / sum (y - mean y)^2.
+  Regions   from measured/commanded signals: accelerating / decelerating / steady (slope of the
+            0.1 s-smoothed |SuTMotorEnc| beyond +-50 rpm/s); forward / reverse (throttle sign,
+            else speed sign); loads motoring / regenerating / unloaded (mean load set point
+            beyond +-0.5 %, + regenerating); at a limit (speed within 3 % of 2100/500 rpm,
+            commanded load current, P_SuT_inv or |C_Kistler| within 5 % of the maps' extremes).
+            The error budget is each region's share of a channel's squared error.
+  Residual  whiteness: autocorrelation over 200 lags against a 95 % band that follows the noise
+  tests     level; cross-correlation with the set points and their changes over +-1 s
+            (+ lag: the residual follows the input, as after a controller delay).";
+
 /// Arguments of `simrod compare`.
 #[derive(Debug, Clone, Args)]
+#[command(after_long_help = HOW)]
 pub struct CompareArgs {
     /// Measured run: .csv (also .txt, .tsv) or .mat, as `simrod bench` writes them.
     #[arg(value_name = "MEAS")]

@@ -12,6 +12,7 @@ pub mod error;
 pub mod measure;
 pub mod profile_file;
 pub mod report;
+pub mod sensor_model;
 pub mod sim_csv;
 pub mod simulate;
 pub mod summary;

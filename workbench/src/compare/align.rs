@@ -20,7 +20,7 @@ use model_core::model::DT_US_RANGE;
 use model_core::{Builtin, Channel, Config, Inputs, Model, Params, Profile, SetPoints, MEASURED};
 
 use super::{CompareError, CompareOptions, InputSource};
-use crate::measure::{Measurement, SETPOINT_LOAD_L, SETPOINT_LOAD_R, SETPOINT_THROTTLE};
+use crate::measure::{Measurement, GAP_CHANNEL, SETPOINT_LOAD_L, SETPOINT_LOAD_R, SETPOINT_THROTTLE};
 
 /// Step used when the measurement's own interval cannot be the model step.
 pub const FALLBACK_DT_US: u32 = 1000;
@@ -60,6 +60,9 @@ pub struct Aligned {
     pub phase_current: [Vec<f64>; 2],
     /// [rpm] the twin's SuT motor speed, for region rules when the file has none.
     pub sim_speed: Vec<f64>,
+    /// Samples inside gaps the reader interpolated across (`--allow-gaps`): left out of
+    /// every figure.
+    pub gaps: Vec<bool>,
 }
 
 /// How the comparison grid relates to the file's.
@@ -234,6 +237,12 @@ pub fn align(meas: &Measurement, opts: &CompareOptions) -> Result<Aligned, Compa
     let derived = derive_powers(&channels);
     channels.extend(derived);
 
+    // Any trace of a gap (also after interpolation onto our grid) marks the sample.
+    let gaps = match on_grid(meas, GAP_CHANNEL, &grid)? {
+        Some(v) => v.iter().map(|g| *g != 0.0).collect(),
+        None => vec![false; n],
+    };
+
     Ok(Aligned {
         time_s,
         dt_us,
@@ -243,6 +252,7 @@ pub fn align(meas: &Measurement, opts: &CompareOptions) -> Result<Aligned, Compa
         channels,
         phase_current: phase,
         sim_speed,
+        gaps,
     })
 }
 

@@ -212,7 +212,12 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
         .channels
         .iter()
         .map(|p| {
-            let e = metrics::residual(&p.meas, &p.sim);
+            let mut e = metrics::residual(&p.meas, &p.sim);
+            for (r, gap) in e.iter_mut().zip(&al.gaps) {
+                if *gap {
+                    *r = f64::NAN;
+                }
+            }
             let m = metrics::metrics(&al.time_s, &p.meas, &e);
             (p.clone(), e, m)
         })
@@ -242,6 +247,10 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
     let t2 = Instant::now();
 
     let mut notes = vec![al.step_note.clone()];
+    let in_gaps = al.gaps.iter().filter(|g| **g).count();
+    if in_gaps > 0 {
+        notes.push(format!("{in_gaps} samples inside interpolated gaps are left out"));
+    }
     notes.extend(classes.notes.iter().cloned());
     let missing: Vec<&str> =
         model_core::MEASURED.iter().map(|c| c.name()).filter(|name| meas.signal(name).is_none()).collect();

@@ -14,15 +14,17 @@
 //!
 //! Whiteness: the 95 % band of lag `l` is `±1.96 √(Σ_k e_k² e_{k+l}²) / Σ e²`, which is
 //! `±1.96/√N` for noise of constant level but stays right when the noise level changes
-//! along the run (the bench's sensors are much noisier at the operating limits); a
+//! along the run (the bench's sensors are much noisier at the operating limits). A
 //! residual is white when at most 10 % of the lags leave their band (5 % expected)
-//! and its mean is within ±3σ/√N (an offset is structure too).
-//! Encoder speeds counted over a window are correlated from sample to sample and so
-//! read as coloured: that is structure too, of the measurement chain. A
-//! cross-correlation *peak* is
-//! the largest of many lags, so it is called significant only beyond the Bonferroni
-//! band `±z(0.025/L)/√N` over the L lags searched (still assuming a white residual: a
-//! coloured one correlates with slow inputs more easily, read it with the whiteness).
+//! and its mean is within ±3σ/√N (an offset is structure too). Encoder speeds counted
+//! over a window are correlated from sample to sample and so read as coloured: that
+//! is structure too, of the measurement chain.
+//!
+//! Cross-correlation: the peak is the largest of L lags, so it is significant only
+//! beyond the Bonferroni level `z = z(0.025/L)`, as `|ρ(l)| > z √(Σ u_k² ē²_{k+l}) /
+//! √(Σe² Σu²)` at the peak's lag, `ē²` the mean of `e²` over ±10 ms (`z/√N` for noise
+//! of one level). That assumes a white residual: a coloured one
+//! correlates with slow inputs more easily, so read it together with the whiteness.
 
 use std::sync::Arc;
 
@@ -33,6 +35,9 @@ use serde::Serialize;
 /// Residuals with an RMS below this fraction of the channel's normaliser are
 /// "negligible": their correlations are rounding noise and get no verdict.
 pub const NEGLIGIBLE_REL: f64 = 1e-6;
+/// [s] half-width over which the residual's local noise level is averaged for the
+/// cross-correlation threshold.
+pub const LOCAL_S: f64 = 0.01;
 /// Largest fraction of autocorrelation lags outside the 95 % band still called white
 /// (5 % are expected; the margin absorbs the estimator's spread over few lags).
 pub const WHITE_MAX_OUTSIDE: f64 = 0.10;
@@ -92,6 +97,9 @@ pub struct CrossPeak {
     pub threshold: f64,
     /// |peak| beyond `threshold` (and the residual not negligible).
     pub significant: bool,
+    /// The peak is at the end of the lag range: the correlation still grows beyond it
+    /// (typical of a slow input against a slow residual), so the lag means little.
+    pub at_edge: bool,
 }
 
 /// Correlation results of one residual.
@@ -158,6 +166,9 @@ struct Input {
     /// First and last centred samples (boundary terms of the difference identity).
     first: f64,
     last: f64,
+    /// u² and (Δu)² per sample, for the noise-level-aware threshold.
+    u2: Vec<f64>,
+    du2: Vec<f64>,
 }
 
 /// Correlates residuals with a fixed set of inputs, and with their first differences
@@ -370,17 +381,46 @@ impl Correlator {
         };
 
         let lags = 2 * self.max_lag + 1;
-        let threshold = tail_quantile(0.025 / lags as f64).max(1.96) / n.sqrt();
-        let max_lag = self.max_lag as i64;
+        let z = tail_quantile(0.025 / lags as f64).max(1.96);
+        // Threshold at the peak's lag l: z·√(Σ_k u_k² ē²_{k+l}) / √(Σe² Σu²), with ē² the
+        // mean of e² over ±LOCAL_S: the standard deviation of Σ e_{k+l} u_k for a white
+        // e whose level changes along the run (z/√N for one level). Sparse inputs (a few
+        // set-point steps) meet the noise at a few instants only, so its level there
+        // is what counts.
+        let mut prefix = Vec::with_capacity(e.len() + 1);
+        prefix.push(0.0);
+        let mut acc = 0.0;
+        for v in e {
+            acc += v * v;
+            prefix.push(acc);
+        }
+        let h = ((LOCAL_S / self.dt_s).round() as usize).max(1);
+        let local_e2: Vec<f64> = (0..e.len())
+            .map(|k| {
+                let (a, b) = (k.saturating_sub(h), (k + h + 1).min(e.len()));
+                (prefix.get(b).copied().unwrap_or(0.0) - prefix.get(a).copied().unwrap_or(0.0))
+                    / (b - a).max(1) as f64
+            })
+            .collect();
         let ne = e.len() as i64;
-        let e_at = |k: i64| {
-            if (0..ne).contains(&k) {
-                e[k as usize]
+        let threshold_at = |u2: &[f64], eu: f64, l: i64| {
+            let s: f64 = u2
+                .iter()
+                .enumerate()
+                .filter_map(|(k, w)| {
+                    let j = k as i64 + l;
+                    (0..ne).contains(&j).then(|| w * local_e2[j as usize])
+                })
+                .sum();
+            if s > 0.0 && ee * eu > 0.0 {
+                z * (s / (ee * eu)).sqrt()
             } else {
-                0.0
+                z / n.sqrt()
             }
         };
-        let peak_of = |name: String, norm: f64, f: &dyn Fn(i64) -> f64| {
+        let max_lag = self.max_lag as i64;
+        let e_at = |k: i64| if (0..ne).contains(&k) { e[k as usize] } else { 0.0 };
+        let peak_of = |name: String, norm: f64, u2: &[f64], eu: f64, f: &dyn Fn(i64) -> f64| {
             let mut best = (0.0f64, 0i64);
             for l in -max_lag..=max_lag {
                 let v = if norm > 0.0 { f(l) / norm } else { 0.0 };
@@ -388,20 +428,24 @@ impl Correlator {
                     best = (v, l);
                 }
             }
+            let threshold = threshold_at(u2, eu, best.1);
             CrossPeak {
                 input: name,
                 peak: best.0,
                 lag_s: best.1 as f64 * self.dt_s,
                 threshold,
                 significant: !negligible && best.0.abs() > threshold,
+                at_edge: max_lag > 0 && best.1.abs() == max_lag,
             }
         };
         let mut plain = Vec::with_capacity(self.inputs.len());
         let mut diffs = Vec::with_capacity(self.inputs.len());
         // (`corr` ends with the e² autocorrelation: the zip stops at the inputs.)
         for (inp, r) in self.inputs.iter().zip(corr.iter().skip(1)) {
-            plain.push(peak_of(inp.name.clone(), (ee * inp.energy).sqrt(), &|l| lag(r, l)));
-            diffs.push(peak_of(format!("d/dt {}", inp.name), (ee * inp.energy_d).sqrt(), &|l| {
+            let norm = (ee * inp.energy).sqrt();
+            plain.push(peak_of(inp.name.clone(), norm, &inp.u2, inp.energy, &|l| lag(r, l)));
+            let norm_d = (ee * inp.energy_d).sqrt();
+            diffs.push(peak_of(format!("d/dt {}", inp.name), norm_d, &inp.du2, inp.energy_d, &|l| {
                 lag(r, l) - lag(r, l + 1) - e_at(l) * inp.first + e_at(ne + l) * inp.last
             }));
         }
@@ -419,6 +463,8 @@ impl Input {
             energy_d: u.windows(2).map(|w| (w[1] - w[0]) * (w[1] - w[0])).sum(),
             first: u.first().copied().unwrap_or(0.0),
             last: u.last().copied().unwrap_or(0.0),
+            u2: u.iter().map(|v| v * v).collect(),
+            du2: std::iter::once(0.0).chain(u.windows(2).map(|w| (w[1] - w[0]) * (w[1] - w[0]))).collect(),
         }
     }
 }

@@ -280,6 +280,29 @@ fn uneven_time_axis_is_resampled_to_1ms() {
 }
 
 #[test]
+fn samples_in_gaps_are_left_out() {
+    let mut meas = bench_run(short_profile(), Effects::NONE);
+    let n = meas.time_s.len();
+    // A wild value inside a marked gap does not count; outside one it does.
+    signal_mut(&mut meas, "C_Kistler_L")[5000] += 100.0;
+    let mut gap = vec![0.0; n];
+    gap[4990..5010].fill(1.0);
+    meas.signals.push(Signal {
+        name: crate::measure::GAP_CHANNEL.to_string(),
+        unit: String::new(),
+        values: gap,
+    });
+    let r = compare(&meas, &CompareOptions::default()).unwrap();
+    let c = r.channel("C_Kistler_L").unwrap();
+    assert_eq!(c.metrics.n, n - 20);
+    assert_eq!(c.metrics.rmse, 0.0);
+    assert!(r.notes.iter().any(|s| s.contains("20 samples inside interpolated gaps")));
+    signal_mut(&mut meas, "C_Kistler_L")[6000] += 100.0;
+    let r = compare(&meas, &CompareOptions::default()).unwrap();
+    assert_eq!(r.channel("C_Kistler_L").unwrap().metrics.max_error_time_s, meas.time_s[6000]);
+}
+
+#[test]
 fn bad_user_data_is_an_error() {
     let mut meas = bench_run(short_profile(), Effects::NONE);
     signal_mut(&mut meas, "C_Kistler_L").pop();
@@ -319,6 +342,7 @@ fn bench_noise_level_is_what_the_rmse_reports() {
         .map(|k| nm.limits.factor(f64::from(tl[k]), f64::from(tr[k]), f64::from(w[k])))
         .collect();
     assert!(g.iter().any(|v| *v > 0.5), "the run reaches the limits");
+    let (mut significant, mut tested) = (0, 0);
     for (name, gauss) in [
         ("C_Kistler_L", nm.torque),
         ("C_Kistler_R", nm.torque),
@@ -332,7 +356,11 @@ fn bench_noise_level_is_what_the_rmse_reports() {
         let rel = c.metrics.rmse / expect;
         assert!((0.96..1.04).contains(&rel), "{name}: rmse {} vs σ {expect}", c.metrics.rmse);
         assert_eq!(c.whiteness.verdict, Verdict::White, "{name}: {:?}", c.whiteness);
+        significant += c.cross.iter().filter(|x| x.significant).count();
+        tested += c.cross.len();
     }
+    // Each peak is tested at 5 %: about 2 of the 36 false alarms are expected.
+    assert!(significant <= 4, "{significant} of {tested} cross-correlation peaks significant");
     // Only noise: no channel is "worst" for a model error except the counted encoder
     // speeds, whose window makes their residual correlated.
     let worst = r.worst_channel().unwrap();

@@ -11,9 +11,11 @@
 //!    incremental reduction given the effects already chosen.
 //! 4. Confirmation: a Levenberg–Marquardt refit of the best candidates on the real
 //!    (nonlinear) simulator; the error it removes, measured, not predicted.
-//! 5. Uncertainty: a moving-block bootstrap of the refit residual (blocks longer than the
-//!    residual's correlation time), propagated through the refit Jacobian — honest when
-//!    residuals are autocorrelated, which they always are.
+//! 5. Uncertainty: a block wild bootstrap of the refit residual — each residual stays
+//!    where it is, whole blocks (longer than the residual's correlation time) flip sign at
+//!    random — propagated through the refit Jacobian. Honest when residuals are
+//!    autocorrelated and when the noise grows where the effect shows (at the operating
+//!    limits), both of which a bench's residuals are.
 //! 6. Confounding: candidates whose predicted residual shapes nearly coincide are reported
 //!    as a group, with the profile (simulated, not guessed) that best separates them.
 //! 7. Verdict: a significant candidate that removes most of the excess error *and leaves a
@@ -238,7 +240,8 @@ fn noise_sigma(r: &[f64], h: usize) -> f64 {
     for (i, v) in r.iter().enumerate() {
         prefix[i + 1] = prefix[i] + v;
     }
-    let mut hp: Vec<f64> = (h..n - h).map(|t| (r[t] - (prefix[t + h + 1] - prefix[t - h]) / k as f64).abs()).collect();
+    let mut hp: Vec<f64> =
+        (h..n - h).map(|t| (r[t] - (prefix[t + h + 1] - prefix[t - h]) / k as f64).abs()).collect();
     hp.sort_by(|a, b| a.total_cmp(b));
     let keep = ((hp.len() as f64) * 0.99).ceil() as usize;
     let kept = &hp[..keep.clamp(1, hp.len())];
@@ -293,9 +296,6 @@ impl SplitMix {
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
         z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
         z ^ (z >> 31)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % (n.max(1) as u64)) as usize
     }
 }
 
@@ -413,8 +413,8 @@ fn refit(twin: &dyn Twin, p: &Prepared, o: &Options, specs: &[&ParamSpec], start
     Some(Fit { values: theta, sim, jac, energy: e })
 }
 
-/// Bootstrap std of the refit parameters: residual blocks resampled, pushed through the
-/// Gauss–Newton step at the optimum.
+/// Bootstrap std of the refit parameters: block wild bootstrap of the residual, pushed
+/// through the Gauss–Newton step at the optimum.
 fn bootstrap_std(p: &Prepared, o: &Options, fit: &Fit, block: usize) -> Vec<f64> {
     let n = fit.values.len();
     let m = p.idx.len();
@@ -437,22 +437,30 @@ fn bootstrap_std(p: &Prepared, o: &Options, fit: &Fit, block: usize) -> Vec<f64>
     let mut rng = SplitMix(o.seed);
     let block = block.clamp(1, m.max(1));
     let mut draws: Vec<Vec<f64>> = Vec::with_capacity(o.bootstrap);
-    for _ in 0..o.bootstrap {
-        // Moving-block bootstrap: the same blocks for every channel keep their coupling.
-        let mut b = vec![0.0; n];
-        let mut k = 0;
-        while k < m {
-            let start = rng.below(m.saturating_sub(block) + 1);
-            for off in 0..block.min(m - k) {
-                let src = start + off;
+    // Each block's contribution J'W r, once; a replicate is a random-sign sum of them.
+    let blocks: Vec<Vec<f64>> = (0..m)
+        .step_by(block)
+        .map(|k0| {
+            let mut b = vec![0.0; n];
+            for k in k0..(k0 + block).min(m) {
                 for (c, w) in p.weights.iter().enumerate() {
-                    let r = resid[c][src];
-                    for i in 0..n {
-                        b[i] += w * fit.jac[i][c][k + off] * r;
+                    let r = resid[c][k];
+                    for (i, bi) in b.iter_mut().enumerate() {
+                        *bi += w * fit.jac[i][c][k] * r;
                     }
                 }
             }
-            k += block;
+            b
+        })
+        .collect();
+    for _ in 0..o.bootstrap {
+        // Same sign for every channel of a block keeps the channels' coupling.
+        let mut b = vec![0.0; n];
+        for blk in &blocks {
+            let sign = if rng.next() & 1 == 0 { 1.0 } else { -1.0 };
+            for (bi, v) in b.iter_mut().zip(blk) {
+                *bi += sign * v;
+            }
         }
         if let Some(d) = solve_spd(&g, &b, 1e-12) {
             draws.push(d);
@@ -673,16 +681,29 @@ pub fn diagnose(
             refit_list.push(i);
         }
     }
-    let base_resid: Vec<Vec<f64>> =
-        p.meas.iter().zip(&p.base).map(|(mm, s)| p.idx.iter().map(|&t| mm[t] - s[t]).collect()).collect();
-    let block =
-        (3 * correlation_length(&p, &base_resid)).max((1.0 / (twin.dt_s() * stride as f64)).ceil() as usize);
+    // Bootstrap blocks: three correlation lengths of the refit residual (what is left is
+    // mostly noise), at least 0.5 s.
+    let min_block = (0.5 / (twin.dt_s() * stride as f64)).ceil() as usize;
     let mut fits: Vec<(usize, Fit)> = Vec::new();
     for &ci in &refit_list {
         let ix = &groups[ci].1;
         let sp: Vec<&ParamSpec> = ix.iter().map(|&i| &specs[i]).collect();
         let start: Vec<f64> = cands[ci].params.iter().map(|f| f.value).collect();
         let Some(fit) = refit(twin, &p, o, &sp, &start) else { continue };
+        let resid: Vec<Vec<f64>> = p
+            .meas
+            .iter()
+            .zip(&fit.sim)
+            .map(|(mm, s)| p.idx.iter().map(|&t| mm[t] - f64::from(s[t])).collect())
+            .collect();
+        let block = (3 * correlation_length(&p, &resid)).max(min_block);
+        if std::env::var_os("SIMROD_DIAG_DEBUG").is_some() {
+            eprintln!(
+                "{}: bootstrap blocks of {block} samples ({} blocks)",
+                groups[ci].0,
+                p.idx.len() / block
+            );
+        }
         let std = bootstrap_std(&p, o, &fit, block);
         let cand = &mut cands[ci];
         cand.confirmed_reduction = Some(((e0 - fit.energy) / excess).clamp(0.0, 1.0));
@@ -808,8 +829,11 @@ pub fn diagnose(
         }
     }
     let describe = |l: &Candidate| -> String {
-        let params: Vec<String> =
-            l.params.iter().map(|fp| format!("{} = {:.4} ± {:.4} {}", fp.name, fp.value, 1.96 * fp.std, fp.unit)).collect();
+        let params: Vec<String> = l
+            .params
+            .iter()
+            .map(|fp| format!("{} = {:.4} ± {:.4} {}", fp.name, fp.value, 1.96 * fp.std, fp.unit))
+            .collect();
         format!("{} ({})", l.effect, params.join(", "))
     };
     let ratio_after = lead_ok.and_then(|l| after(l.effect)).map_or(excess_ratio, |f| f.energy / e_noise);

@@ -4,6 +4,17 @@
 use model_core::{Builtin, Channel, Config, Effects, Inputs, Model, Profile, Simulation};
 
 use super::engine::{ProfileProbe, Twin};
+use crate::sensor_model::{half_width, window_average, SPEED_CHANNELS};
+
+/// Apply the bench's speed-counting window to the simulated speed channels.
+fn sense(out: &mut [Vec<f32>], channels: &[Channel], dt: f64, window_s: f64) {
+    let half = half_width(window_s, dt);
+    for (v, c) in out.iter_mut().zip(channels) {
+        if SPEED_CHANNELS.contains(c) {
+            *v = window_average(v, dt, half);
+        }
+    }
+}
 
 /// The model driven, one step per sample, by the set points recorded with a run.
 ///
@@ -16,6 +27,8 @@ pub struct RecordedTwin {
     pub inputs: Vec<Inputs>,
     /// Channels to return.
     pub channels: Vec<Channel>,
+    /// [s] the bench's speed-counting window (0: speeds as simulated).
+    pub speed_window_s: f64,
 }
 
 impl Twin for RecordedTwin {
@@ -39,6 +52,7 @@ impl Twin for RecordedTwin {
                 v.push(o.get(*c));
             }
         }
+        sense(&mut out, &self.channels, self.dt_s(), self.speed_window_s);
         Ok(out)
     }
 }
@@ -57,18 +71,20 @@ pub struct BuiltinProbe {
     pub channels: Vec<Channel>,
     /// (profile, throttle scale, load scale) candidates.
     pub candidates: Vec<(Builtin, f32, f32)>,
+    /// [s] the bench's speed-counting window.
+    pub speed_window_s: f64,
 }
 
 impl BuiltinProbe {
     /// Forward and reverse, with and without loads, every built-in profile.
-    pub fn standard(config: Config, channels: Vec<Channel>) -> Self {
+    pub fn standard(config: Config, channels: Vec<Channel>, speed_window_s: f64) -> Self {
         let mut candidates = Vec::new();
         for b in Builtin::ALL {
             for (ts, ls) in [(1.0, 1.0), (0.79, 0.0), (-1.0, 0.0), (0.79, -1.0)] {
                 candidates.push((b, ts, ls));
             }
         }
-        Self { config, channels, candidates }
+        Self { config, channels, candidates, speed_window_s }
     }
 }
 
@@ -86,13 +102,15 @@ impl ProfileProbe for BuiltinProbe {
         let cfg = Config { effects: *fx, ..self.config };
         let sim = Simulation::new(&cfg, Profile::builtin(b, ts, ls).ok()?, 24.0).ok()?;
         let mut out: Vec<Vec<f32>> = self.channels.iter().map(|_| Vec::new()).collect();
-        // Every 10th step is plenty to compare shapes.
-        for o in sim.step_by(10) {
+        let dt = f64::from(self.config.dt_us) * 1e-6;
+        for o in sim {
             for (v, c) in out.iter_mut().zip(&self.channels) {
                 v.push(o.get(*c));
             }
         }
-        Some(out)
+        sense(&mut out, &self.channels, dt, self.speed_window_s);
+        // Every 10th step is plenty to compare shapes.
+        Some(out.into_iter().map(|v| v.into_iter().step_by(10).collect()).collect())
     }
 }
 

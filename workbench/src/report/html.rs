@@ -98,10 +98,11 @@ fn channel_section(o: &mut String, c: &ChannelResult, t: &[f64], worst: bool) {
         .iter()
         .map(|x| {
             format!(
-                "<tr><td>{}</td><td class=n>{:+.3}</td><td class=n>{:+.3}</td><td>{}</td></tr>",
+                "<tr><td>{}</td><td class=n>{:+.3}</td><td class=n>{:+.3}{}</td><td>{}</td></tr>",
                 esc(&x.input),
                 x.peak,
                 x.lag_s,
+                if x.at_edge { " (edge)" } else { "" },
                 if x.significant { "yes" } else { "no" }
             )
         })

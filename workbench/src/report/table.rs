@@ -226,7 +226,7 @@ pub fn render(r: &CompareResult) -> String {
     // Residual structure.
     let _ = writeln!(
         o,
-        "Residual structure: whiteness over {} lags (95 % band ±{}), strongest input cross-correlation (+lag: residual follows the input)",
+        "Residual structure: whiteness over {} lags (95 % band ±{}); strongest cross-correlation with a set point and with a set-point change (+lag: the residual follows; n.s. = not significant)",
         r.channels.first().map_or(0, |c| c.whiteness.lags),
         r.channels.first().map_or("-".into(), |c| num(c.whiteness.band))
     );
@@ -235,34 +235,39 @@ pub fn render(r: &CompareResult) -> String {
         "lag-1 ρ".into(),
         "outside band".into(),
         "verdict".into(),
-        "input".into(),
-        "peak ρ".into(),
-        "lag [s]".into(),
+        "set point: ρ @ lag".into(),
+        "set-point change: ρ @ lag".into(),
     ]];
+    let peak = |c: &ChannelResult, change: bool| {
+        c.cross
+            .iter()
+            .filter(|x| x.input.starts_with("d/dt ") == change)
+            .max_by(|a, b| a.peak.abs().total_cmp(&b.peak.abs()))
+            .map_or("-".to_string(), |x| {
+                format!(
+                    "{} {:+.3} @ {:+.3} s{}{}",
+                    x.input,
+                    x.peak,
+                    x.lag_s,
+                    if x.at_edge { " (edge)" } else { "" },
+                    if x.significant { "" } else { " (n.s.)" }
+                )
+            })
+    };
     for c in r.channels.iter().filter(|c| !negligible(c)) {
-        let best = c.cross.iter().max_by(|a, b| a.peak.abs().total_cmp(&b.peak.abs()));
-        let (input, peak, lag) = match best {
-            Some(x) => (
-                format!("{}{}", x.input, if x.significant { "" } else { " (n.s.)" }),
-                format!("{:+.3}", x.peak),
-                format!("{:+.3}", x.lag_s),
-            ),
-            None => ("-".into(), "-".into(), "-".into()),
-        };
         rows.push(vec![
             name_of(c),
             format!("{:+.3}", c.whiteness.lag1),
             pct(c.whiteness.fraction_outside),
             c.whiteness.verdict.describe().to_string(),
-            input,
-            peak,
-            lag,
+            peak(c, false),
+            peak(c, true),
         ]);
     }
     if rows.len() == 1 {
         let _ = writeln!(o, "  (every residual is negligible)");
     } else {
-        for line in columns(&rows, &[0, 3, 4]).lines() {
+        for line in columns(&rows, &[0, 3, 4, 5]).lines() {
             let _ = writeln!(o, "  {line}");
         }
     }
