@@ -268,70 +268,86 @@ pub const EFFECT_PARAMS: &[(&str, &[&str])] = &[
     ("connector_resistance_drift", &["alpha_per_k", "k_per_w", "time_constant_s"]),
 ];
 
+/// Where one effect parameter lives: a plain value, or an override of a model value.
+enum Slot<'a> {
+    Value(&'a mut f32),
+    Override(&'a mut Option<f32>),
+}
+
 impl Effects {
-    /// Set one parameter by effect id and parameter name (the effect-file vocabulary).
-    /// Range checks happen in [`Effects::validate`], once every parameter is set.
-    pub fn set(&mut self, effect: &str, param: &str, v: f32) -> Result<(), EffectKeyError> {
+    /// The storage of one parameter, by effect id and parameter name.
+    fn slot(&mut self, effect: &str, param: &str) -> Result<Slot<'_>, EffectKeyError> {
         let names = EFFECT_PARAMS
             .iter()
             .find(|(id, _)| *id == effect)
             .map(|(_, p)| *p)
             .ok_or(EffectKeyError::UnknownEffect)?;
-        let slot: Option<&mut f32> = match (effect, param) {
-            ("differential_friction", "coulomb_nm") => Some(&mut self.differential_friction.coulomb_nm),
+        Ok(match (effect, param) {
+            ("differential_friction", "coulomb_nm") => {
+                Slot::Value(&mut self.differential_friction.coulomb_nm)
+            }
             ("differential_friction", "viscous_nm_s_per_rad") => {
-                Some(&mut self.differential_friction.viscous_nm_s)
+                Slot::Value(&mut self.differential_friction.viscous_nm_s)
             }
-            ("axle_friction_scale", "left") => Some(&mut self.axle_friction_scale[0]),
-            ("axle_friction_scale", "right") => Some(&mut self.axle_friction_scale[1]),
-            ("controller_delay", "delay_s") => Some(&mut self.controller_delay_s),
-            ("inverter_rate_scale", "accel_fwd") => Some(&mut self.inverter_rate_scale[0][0]),
-            ("inverter_rate_scale", "decel_fwd") => Some(&mut self.inverter_rate_scale[0][1]),
-            ("inverter_rate_scale", "accel_rev") => Some(&mut self.inverter_rate_scale[1][0]),
-            ("inverter_rate_scale", "decel_rev") => Some(&mut self.inverter_rate_scale[1][1]),
-            ("coupling_stiffness", "stiffness_nm_per_rad") => {
-                self.coupling_stiffness = Some(v);
-                None
+            ("axle_friction_scale", "left") => Slot::Value(&mut self.axle_friction_scale[0]),
+            ("axle_friction_scale", "right") => Slot::Value(&mut self.axle_friction_scale[1]),
+            ("controller_delay", "delay_s") => Slot::Value(&mut self.controller_delay_s),
+            ("inverter_rate_scale", "accel_fwd") => Slot::Value(&mut self.inverter_rate_scale[0][0]),
+            ("inverter_rate_scale", "decel_fwd") => Slot::Value(&mut self.inverter_rate_scale[0][1]),
+            ("inverter_rate_scale", "accel_rev") => Slot::Value(&mut self.inverter_rate_scale[1][0]),
+            ("inverter_rate_scale", "decel_rev") => Slot::Value(&mut self.inverter_rate_scale[1][1]),
+            ("coupling_stiffness", "stiffness_nm_per_rad") => Slot::Override(&mut self.coupling_stiffness),
+            ("coupling_damping", "damping_nm_s_per_rad") => Slot::Override(&mut self.coupling_damping),
+            ("inertia_scale", "sut") => Slot::Value(&mut self.inertia_scale[0]),
+            ("inertia_scale", "load_l") => Slot::Value(&mut self.inertia_scale[1]),
+            ("inertia_scale", "load_r") => Slot::Value(&mut self.inertia_scale[2]),
+            ("connector_resistance", "resistance_ohm") => Slot::Override(&mut self.connector_resistance),
+            ("supply_resistance", "resistance_ohm") => Slot::Value(&mut self.supply_resistance),
+            ("regen_efficiency", "extra_loss") => Slot::Value(&mut self.regen_loss),
+            ("torque_sensor_offset", "left_nm") => Slot::Value(&mut self.torque_sensor_offset[0]),
+            ("torque_sensor_offset", "right_nm") => Slot::Value(&mut self.torque_sensor_offset[1]),
+            ("torque_sensor_gain", "left") => Slot::Value(&mut self.torque_sensor_gain[0]),
+            ("torque_sensor_gain", "right") => Slot::Value(&mut self.torque_sensor_gain[1]),
+            ("speed_sensor_gain", "sut_motor") => Slot::Value(&mut self.speed_sensor_gain[0]),
+            ("speed_sensor_gain", "flange_l") => Slot::Value(&mut self.speed_sensor_gain[1]),
+            ("speed_sensor_gain", "flange_r") => Slot::Value(&mut self.speed_sensor_gain[2]),
+            ("speed_sensor_gain", "siemens") => Slot::Value(&mut self.speed_sensor_gain[3]),
+            ("current_sensor_gain", "dpu") => Slot::Value(&mut self.current_sensor_gain[0]),
+            ("current_sensor_gain", "dc") => Slot::Value(&mut self.current_sensor_gain[1]),
+            ("current_sensor_gain", "xlml") => Slot::Value(&mut self.current_sensor_gain[2]),
+            ("current_sensor_gain", "xlmr") => Slot::Value(&mut self.current_sensor_gain[3]),
+            ("gear_backlash", "backlash_deg") => Slot::Value(&mut self.gear_backlash.backlash_deg),
+            ("stribeck_friction", "peak_nm") => Slot::Value(&mut self.stribeck_friction.peak_nm),
+            ("stribeck_friction", "speed_rpm") => Slot::Value(&mut self.stribeck_friction.speed_rpm),
+            ("connector_resistance_drift", "alpha_per_k") => {
+                Slot::Value(&mut self.connector_drift.alpha_per_k)
             }
-            ("coupling_damping", "damping_nm_s_per_rad") => {
-                self.coupling_damping = Some(v);
-                None
-            }
-            ("inertia_scale", "sut") => Some(&mut self.inertia_scale[0]),
-            ("inertia_scale", "load_l") => Some(&mut self.inertia_scale[1]),
-            ("inertia_scale", "load_r") => Some(&mut self.inertia_scale[2]),
-            ("connector_resistance", "resistance_ohm") => {
-                self.connector_resistance = Some(v);
-                None
-            }
-            ("supply_resistance", "resistance_ohm") => Some(&mut self.supply_resistance),
-            ("regen_efficiency", "extra_loss") => Some(&mut self.regen_loss),
-            ("torque_sensor_offset", "left_nm") => Some(&mut self.torque_sensor_offset[0]),
-            ("torque_sensor_offset", "right_nm") => Some(&mut self.torque_sensor_offset[1]),
-            ("torque_sensor_gain", "left") => Some(&mut self.torque_sensor_gain[0]),
-            ("torque_sensor_gain", "right") => Some(&mut self.torque_sensor_gain[1]),
-            ("speed_sensor_gain", "sut_motor") => Some(&mut self.speed_sensor_gain[0]),
-            ("speed_sensor_gain", "flange_l") => Some(&mut self.speed_sensor_gain[1]),
-            ("speed_sensor_gain", "flange_r") => Some(&mut self.speed_sensor_gain[2]),
-            ("speed_sensor_gain", "siemens") => Some(&mut self.speed_sensor_gain[3]),
-            ("current_sensor_gain", "dpu") => Some(&mut self.current_sensor_gain[0]),
-            ("current_sensor_gain", "dc") => Some(&mut self.current_sensor_gain[1]),
-            ("current_sensor_gain", "xlml") => Some(&mut self.current_sensor_gain[2]),
-            ("current_sensor_gain", "xlmr") => Some(&mut self.current_sensor_gain[3]),
-            ("gear_backlash", "backlash_deg") => Some(&mut self.gear_backlash.backlash_deg),
-            ("stribeck_friction", "peak_nm") => Some(&mut self.stribeck_friction.peak_nm),
-            ("stribeck_friction", "speed_rpm") => Some(&mut self.stribeck_friction.speed_rpm),
-            ("connector_resistance_drift", "alpha_per_k") => Some(&mut self.connector_drift.alpha_per_k),
-            ("connector_resistance_drift", "k_per_w") => Some(&mut self.connector_drift.k_per_w),
+            ("connector_resistance_drift", "k_per_w") => Slot::Value(&mut self.connector_drift.k_per_w),
             ("connector_resistance_drift", "time_constant_s") => {
-                Some(&mut self.connector_drift.time_constant_s)
+                Slot::Value(&mut self.connector_drift.time_constant_s)
             }
             _ => return Err(EffectKeyError::UnknownParameter(names)),
-        };
-        if let Some(s) = slot {
-            *s = v;
+        })
+    }
+
+    /// Set one parameter by effect id and parameter name (the effect-file vocabulary).
+    /// Range checks happen in [`Effects::validate`], once every parameter is set.
+    pub fn set(&mut self, effect: &str, param: &str, v: f32) -> Result<(), EffectKeyError> {
+        match self.slot(effect, param)? {
+            Slot::Value(s) => *s = v,
+            Slot::Override(s) => *s = Some(v),
         }
         Ok(())
+    }
+
+    /// One parameter's value; `None` for an override that is not set (the model's own
+    /// value applies).
+    pub fn get(&self, effect: &str, param: &str) -> Result<Option<f32>, EffectKeyError> {
+        let mut copy = *self;
+        Ok(match copy.slot(effect, param)? {
+            Slot::Value(s) => Some(*s),
+            Slot::Override(s) => *s,
+        })
     }
 }
 
@@ -350,6 +366,19 @@ mod tests {
         }
         assert_eq!(EFFECT_IDS.len(), EFFECT_PARAMS.len());
         assert!(EFFECT_PARAMS.iter().all(|(id, _)| EFFECT_IDS.contains(id)));
+    }
+
+    #[test]
+    fn get_reads_what_set_wrote() {
+        for (id, params) in EFFECT_PARAMS {
+            for p in *params {
+                let mut fx = Effects::NONE;
+                fx.set(id, p, 0.25).unwrap();
+                assert_eq!(fx.get(id, p), Ok(Some(0.25)), "{id}.{p}");
+            }
+        }
+        assert_eq!(Effects::NONE.get("coupling_stiffness", "stiffness_nm_per_rad"), Ok(None));
+        assert_eq!(Effects::NONE.get("inertia_scale", "sut"), Ok(Some(1.0)));
     }
 
     #[test]

@@ -228,3 +228,115 @@ impl Default for Params {
         Self::thesis(RateSet::Identified, CouplingStiffness::Identified)
     }
 }
+
+/// Why `Params::set` refused a key.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ParamKeyError {
+    /// Not a key of `parameters.toml`.
+    Unknown,
+}
+
+impl Params {
+    /// Set a parameter by its `parameters.toml` key, so a parameter file (identified or
+    /// altered) can be applied at run time exactly as `build.rs` applies it at build time.
+    /// `prog.*`/`ident.*` keys apply when they belong to the rate set in use, and
+    /// `coupling_stiffness_identified`/`_datasheet` when they are the stiffness in use;
+    /// the others are accepted and ignored. `supply_voltage_*` are bench limits, not model
+    /// parameters: accepted and ignored.
+    pub fn set(
+        &mut self,
+        key: &str,
+        v: f32,
+        rates: RateSet,
+        coupling: CouplingStiffness,
+    ) -> Result<(), ParamKeyError> {
+        let rate_field = |r: &mut DirectionRates, name: &str| -> Option<()> {
+            let field = match name {
+                "hs" => &mut r.hs_pct,
+                "ls" => &mut r.ls_pct,
+                "accel_hs" => &mut r.accel_hs_s,
+                "accel_ls" => &mut r.accel_ls_s,
+                "low_accel" => &mut r.low_accel_s,
+                "neutral_decel_hs" => &mut r.neutral_decel_hs_s,
+                "neutral_decel_ls" => &mut r.neutral_decel_ls_s,
+                "partial_decel" => &mut r.partial_decel_s,
+                _ => return None,
+            };
+            *field = v;
+            Some(())
+        };
+        if let Some((set, rest)) = key.split_once('.') {
+            let which = match set {
+                "prog" => RateSet::Programmed,
+                "ident" => RateSet::Identified,
+                _ => return Err(ParamKeyError::Unknown),
+            };
+            // rest = <name>_<fwd|rev>_<unit>, e.g. accel_hs_fwd_s, ls_rev_pct.
+            let (stem, unit) = rest.rsplit_once('_').ok_or(ParamKeyError::Unknown)?;
+            let (name, dir) = stem.rsplit_once('_').ok_or(ParamKeyError::Unknown)?;
+            let d = match dir {
+                "fwd" => 0,
+                "rev" => 1,
+                _ => return Err(ParamKeyError::Unknown),
+            };
+            let unit_ok =
+                matches!((name, unit), ("hs" | "ls", "pct")) || (unit == "s" && !matches!(name, "hs" | "ls"));
+            if !unit_ok {
+                return Err(ParamKeyError::Unknown);
+            }
+            let mut scratch = self.rates;
+            let target = if which == rates { &mut self.rates } else { &mut scratch };
+            let r = target.dir.get_mut(d).ok_or(ParamKeyError::Unknown)?;
+            return rate_field(r, name).ok_or(ParamKeyError::Unknown);
+        }
+        let f: &mut f32 = match key {
+            "throttle_volts_per_pct" => &mut self.throttle_volts_per_pct,
+            "max_speed_fwd_rpm" => &mut self.max_speed_rpm[0],
+            "max_speed_rev_rpm" => &mut self.max_speed_rpm[1],
+            "typical_max_speed_rpm" => &mut self.typical_max_speed_rpm,
+            "speed_limit_fwd_rpm" => &mut self.speed_limit_rpm[0],
+            "speed_limit_rev_rpm" => &mut self.speed_limit_rpm[1],
+            "full_throttle_pct" => &mut self.full_throttle_pct,
+            "low_throttle_pct" => &mut self.low_throttle_pct,
+            "pid_kp" => &mut self.pid_kp,
+            "pid_ki" => &mut self.pid_ki,
+            "pid_kd" => &mut self.pid_kd,
+            "pid_d_filter_s" => &mut self.pid_d_filter_s,
+            "motor_torque_max_nm" => &mut self.motor_torque_max_nm,
+            "motor_power_max_w" => &mut self.motor_power_max_w,
+            "sut_gear_ratio" => &mut self.sut_gear_ratio,
+            "load_gear_ratio" => &mut self.load_gear_ratio,
+            "sut_inertia" => &mut self.sut_inertia,
+            "sut_motor_inertia_share" => &mut self.sut_motor_inertia_share,
+            "load_inertia_l" => &mut self.load_inertia[0],
+            "load_inertia_r" => &mut self.load_inertia[1],
+            "flange_inertia" => &mut self.flange_inertia,
+            "flange_stiffness" => &mut self.flange_stiffness,
+            "flange_damping" => &mut self.flange_damping,
+            "coupling_stiffness_identified" | "coupling_stiffness_datasheet" => {
+                let mine = matches!(
+                    (key, coupling),
+                    ("coupling_stiffness_identified", CouplingStiffness::Identified)
+                        | ("coupling_stiffness_datasheet", CouplingStiffness::Datasheet)
+                );
+                if mine {
+                    self.coupling_stiffness = v;
+                }
+                return Ok(());
+            }
+            "coupling_damping" => &mut self.coupling_damping,
+            "load_base_rpm" => &mut self.load_base_rpm,
+            "load_no_load_rpm" => &mut self.load_no_load_rpm,
+            "regen_fade_rpm" => &mut self.regen_fade_rpm,
+            "connector_resistance" => &mut self.connector_resistance,
+            "sut_drive_efficiency" => &mut self.sut_drive_efficiency,
+            "sut_power_rate_w_per_s" => &mut self.sut_power_rate_w_per_s,
+            "load_power_rate_w_per_s" => &mut self.load_power_rate_w_per_s,
+            "supply_voltage_v" | "supply_voltage_min_v" | "supply_voltage_max_v" => return Ok(()),
+            _ => return Err(ParamKeyError::Unknown),
+        };
+        *f = v;
+        Ok(())
+    }
+}

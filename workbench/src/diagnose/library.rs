@@ -72,42 +72,9 @@ pub fn with_values(base: &Effects, specs: &[&ParamSpec], values: &[f64]) -> Effe
     fx
 }
 
-/// The current value of a parameter in `fx` (the neutral value when the effect is off).
+/// The current value of a parameter in `fx` (the neutral value when an override is unset).
 pub fn current_value(fx: &Effects, s: &ParamSpec) -> f64 {
-    let v = match (s.effect, s.param) {
-        ("differential_friction", "coulomb_nm") => Some(fx.differential_friction.coulomb_nm),
-        ("differential_friction", "viscous_nm_s_per_rad") => Some(fx.differential_friction.viscous_nm_s),
-        ("axle_friction_scale", "left") => Some(fx.axle_friction_scale[0]),
-        ("axle_friction_scale", "right") => Some(fx.axle_friction_scale[1]),
-        ("gear_backlash", _) => Some(fx.gear_backlash.backlash_deg),
-        ("controller_delay", _) => Some(fx.controller_delay_s),
-        ("inverter_rate_scale", "accel_fwd") => Some(fx.inverter_rate_scale[0][0]),
-        ("inverter_rate_scale", "decel_fwd") => Some(fx.inverter_rate_scale[0][1]),
-        ("inverter_rate_scale", "accel_rev") => Some(fx.inverter_rate_scale[1][0]),
-        ("inverter_rate_scale", "decel_rev") => Some(fx.inverter_rate_scale[1][1]),
-        ("coupling_stiffness", _) => fx.coupling_stiffness,
-        ("coupling_damping", _) => fx.coupling_damping,
-        ("inertia_scale", "sut") => Some(fx.inertia_scale[0]),
-        ("inertia_scale", "load_l") => Some(fx.inertia_scale[1]),
-        ("inertia_scale", "load_r") => Some(fx.inertia_scale[2]),
-        ("connector_resistance", _) => fx.connector_resistance,
-        ("supply_resistance", _) => Some(fx.supply_resistance),
-        ("regen_efficiency", _) => Some(fx.regen_loss),
-        ("torque_sensor_offset", "left_nm") => Some(fx.torque_sensor_offset[0]),
-        ("torque_sensor_offset", "right_nm") => Some(fx.torque_sensor_offset[1]),
-        ("torque_sensor_gain", "left") => Some(fx.torque_sensor_gain[0]),
-        ("torque_sensor_gain", "right") => Some(fx.torque_sensor_gain[1]),
-        ("speed_sensor_gain", "sut_motor") => Some(fx.speed_sensor_gain[0]),
-        ("speed_sensor_gain", "flange_l") => Some(fx.speed_sensor_gain[1]),
-        ("speed_sensor_gain", "flange_r") => Some(fx.speed_sensor_gain[2]),
-        ("speed_sensor_gain", "siemens") => Some(fx.speed_sensor_gain[3]),
-        ("current_sensor_gain", "dpu") => Some(fx.current_sensor_gain[0]),
-        ("current_sensor_gain", "dc") => Some(fx.current_sensor_gain[1]),
-        ("current_sensor_gain", "xlml") => Some(fx.current_sensor_gain[2]),
-        ("current_sensor_gain", "xlmr") => Some(fx.current_sensor_gain[3]),
-        _ => None,
-    };
-    v.map_or(s.neutral, f64::from)
+    fx.get(s.effect, s.param).ok().flatten().map_or(s.neutral, f64::from)
 }
 
 #[cfg(test)]
