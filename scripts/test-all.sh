@@ -21,6 +21,7 @@ cargo fmt --all -- --check
 step "model-core builds for the target without std or alloc"
 cargo build -p model-core --target thumbv7em-none-eabihf
 cargo build -p model-core --target thumbv7em-none-eabihf --features defmt
+cargo build -p model-core --target thumbv7em-none-eabihf --features profile-hooks
 
 step "firmware builds"
 cargo build -p firmware --release --target thumbv7em-none-eabihf

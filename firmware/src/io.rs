@@ -151,13 +151,8 @@ impl<W: Write + WriteReady> OutputSink for SerialSink<W> {
             self.dropped = self.dropped.wrapping_add(1);
             return;
         }
-        let mut values = [0f32; 60];
-        for (v, c) in values.iter_mut().zip(self.channels) {
-            *v = out.get(*c);
-        }
-        let n = self.channels.len().min(values.len());
-        let vals = values.get(..n).unwrap_or(&[]);
-        match protocol::encode_outputs(self.seq, out.t_us, vals, &mut self.buf) {
+        let values = self.channels.iter().map(|c| out.get(*c));
+        match protocol::encode_outputs_with(self.seq, out.t_us, values, self.channels.len(), &mut self.buf) {
             Some(len) => {
                 self.len = len;
                 self.pos = 0;

@@ -29,6 +29,7 @@ use defmt_semihosting as _;
 pub mod bench;
 pub mod board;
 pub mod clock;
+pub mod hostio;
 pub mod io;
 pub mod protocol;
 pub mod step;

@@ -18,7 +18,7 @@ use firmware::board::{self, UartRx};
 use firmware::clock::{self, CycleCounter};
 use firmware::io::{ProfileSource, SerialSink, SerialSource, SetPointSource};
 use firmware::protocol;
-use model_core::{Builtin, Inputs, Model, Profile, MEASURED};
+use model_core::{Builtin, ConfigError, Inputs, Model, Profile, MEASURED};
 
 /// UART speed of the serial stream.
 const BAUD: u32 = 115_200;
@@ -86,6 +86,23 @@ fn main() -> ! {
     let Some(mut cp) = cortex_m::Peripherals::take() else {
         defmt::panic!("core peripherals taken twice");
     };
+    let (profile, xil, tick_us) = options();
+    PERIOD.store(CYCLES_PER_US * tick_us, core::sync::atomic::Ordering::Relaxed);
+
+    // The model is used where it was built: moving it out of the `Result` would cost
+    // a second copy of its ~3.4 KB on the stack.
+    let mut built = build_model();
+    let model = match &mut built {
+        Ok(m) => m,
+        Err(e) => defmt::panic!("model config rejected: {}", e),
+    };
+    serve(model, &mut cp, profile, xil, tick_us)
+}
+
+/// Profile, XiL mode and tick [µs] of this run: the build's, or the QEMU command
+/// line's (its buffer lives in this frame only, not under the model's construction).
+#[inline(never)]
+fn options() -> (Builtin, bool, u32) {
     let mut args = [0u8; 160];
     let args = firmware::qemu_cmdline(&mut args);
     let profile =
@@ -99,13 +116,25 @@ fn main() -> ! {
         .and_then(|v| v.parse::<u32>().ok())
         .filter(|v| (5..=100_000).contains(v))
         .unwrap_or(firmware::STEP_US);
-    PERIOD.store(CYCLES_PER_US * tick_us, core::sync::atomic::Ordering::Relaxed);
+    (profile, xil, tick_us)
+}
 
-    let cfg = firmware::config(firmware::BUILD_RATES);
-    let mut model = match Model::new(&cfg) {
-        Ok(m) => m,
-        Err(e) => defmt::panic!("model config rejected: {}", e),
-    };
+/// The model of this build. Its own frame holds the construction's temporaries, gone
+/// before [`serve`]'s buffers exist: the stack peaks here (with `SideDisc::new` below).
+#[inline(never)]
+fn build_model() -> Result<Model<'static>, ConfigError> {
+    Model::new(&firmware::config(firmware::BUILD_RATES))
+}
+
+/// Set up the I/O, run the loop, report, exit.
+#[inline(never)]
+fn serve(
+    model: &mut Model<'static>,
+    cp: &mut cortex_m::Peripherals,
+    profile: Builtin,
+    xil: bool,
+    tick_us: u32,
+) -> ! {
     defmt::info!(
         "simrod firmware: step {=u32} us, tick {=u32} us, rates {}, effects file {=str}",
         firmware::STEP_US,
@@ -129,11 +158,11 @@ fn main() -> ! {
         Source::Profile(ProfileSource::new(p, firmware::SUPPLY_V))
     };
 
-    let clk = step_clock(&mut cp);
+    let clk = step_clock(cp);
     clock::start_tick(&mut cp.SYST, period());
     let loop_cfg =
         LoopConfig { period_cycles: period(), late_budget_cycles: period() / 10, output_every: OUTPUT_EVERY };
-    let stats = bench::run(&mut model, &mut source, &mut sink, &mut status, &clk, &loop_cfg);
+    let stats = bench::run(model, &mut source, &mut sink, &mut status, &clk, &loop_cfg);
     cp.SYST.disable_interrupt();
     let mean = (stats.total_step_cycles / u64::from(stats.steps.max(1))) as u32;
     let (received, rejected) = match &source {

@@ -49,12 +49,19 @@ pub const FRAME_OVERHEAD: usize = 6;
 
 /// Fletcher-16: cheap, and unlike a plain sum it catches swapped bytes.
 pub fn fletcher16(bytes: &[u8]) -> u16 {
-    let (mut a, mut b) = (0u16, 0u16);
-    for &x in bytes {
-        a = (a + u16::from(x)) % 255;
-        b = (b + a) % 255;
+    // Sums reduced mod 255 once per 5802 bytes instead of every byte (the same
+    // result): up to 5802 bytes keep both within u32. A frame is at most 261 bytes, so
+    // the output frame costs two divisions, not 2 per byte, inside the step's budget.
+    let (mut a, mut b) = (0u32, 0u32);
+    for chunk in bytes.chunks(5802) {
+        for &x in chunk {
+            a += u32::from(x);
+            b += a;
+        }
+        a %= 255;
+        b %= 255;
     }
-    (b << 8) | a
+    ((b as u16) << 8) | a as u16
 }
 
 /// Write a frame of `kind` around `payload` into `buf`; the frame length, or `None`
@@ -75,15 +82,37 @@ pub fn encode_frame(kind: u8, payload: &[u8], buf: &mut [u8]) -> Option<usize> {
 /// Encode an output frame: `seq`, `t_us` and `values`; the frame length, or `None` when
 /// it does not fit `buf` or a frame.
 pub fn encode_outputs(seq: u32, t_us: u64, values: &[f32], buf: &mut [u8]) -> Option<usize> {
-    let mut payload = [0u8; MAX_PAYLOAD];
-    let n = 12 + 4 * values.len();
-    let p = payload.get_mut(..n)?;
-    p[..4].copy_from_slice(&seq.to_le_bytes());
-    p[4..12].copy_from_slice(&t_us.to_le_bytes());
-    for (dst, v) in p[12..].chunks_exact_mut(4).zip(values) {
-        dst.copy_from_slice(&v.to_le_bytes());
+    encode_outputs_with(seq, t_us, values.iter().copied(), values.len(), buf)
+}
+
+/// [`encode_outputs`] of `n` values taken from an iterator, written straight into `buf`
+/// (no intermediate copies: this runs inside the step's time budget).
+pub fn encode_outputs_with(
+    seq: u32,
+    t_us: u64,
+    values: impl Iterator<Item = f32>,
+    n: usize,
+    buf: &mut [u8],
+) -> Option<usize> {
+    let len = 12 + 4 * n;
+    if len > MAX_PAYLOAD {
+        return None;
     }
-    encode_frame(KIND_OUTPUTS, p, buf)
+    let frame = buf.get_mut(..len + FRAME_OVERHEAD)?;
+    frame[..4].copy_from_slice(&[SYNC[0], SYNC[1], KIND_OUTPUTS, len as u8]);
+    frame[4..8].copy_from_slice(&seq.to_le_bytes());
+    frame[8..16].copy_from_slice(&t_us.to_le_bytes());
+    let mut filled = 0;
+    for (dst, v) in frame[16..4 + len].chunks_exact_mut(4).zip(values) {
+        dst.copy_from_slice(&v.to_le_bytes());
+        filled += 1;
+    }
+    if filled != n {
+        return None;
+    }
+    let ck = fletcher16(&frame[2..4 + len]);
+    frame[4 + len..].copy_from_slice(&ck.to_le_bytes());
+    Some(len + FRAME_OVERHEAD)
 }
 
 /// Encode a set-point frame.
@@ -316,3 +345,36 @@ impl Fnv1a64 {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------
+// Cost stream of `simrod-cost` (semihosting file, little-endian, every field a u32
+// unless noted):
+//
+//   file:  COST_MAGIC | ns_per_insn | timer_hz | n_blocks (0: no block profile)
+//          | n_cal | n_cal x (nops, instructions, raw timer counts)
+//          | mark_overhead (instructions between two back-to-back probe calls; 0
+//          | without block profile) | stack_window (bytes painted below the step)
+//          | runs ... | DONE_MAGIC | n_runs
+//   run:   RUN_MAGIC | profile name: [u8; 8] (NUL padded) | rate set: u8 (0
+//          programmed, 1 identified) | n_steps
+//          | n_steps x (COST_FIXED_WORDS + 2 n_blocks words: profile_at instructions,
+//            step instructions, step stack bytes, then per block its instructions
+//            and the number of intervals they were summed over)
+//          | END_MAGIC | fnv1a64 over the channel bits of every step: u64
+//
+// Instructions are counted by QEMU's `-icount shift=S` (one instruction = 2^S ns of
+// virtual time) through the 25 MHz SysTick: with S >= 7 one instruction moves the
+// timer by at least 3.2 counts, so every interval converts to an exact instruction
+// count; the calibration records (nops) prove it.
+// ---------------------------------------------------------------------------------
+
+/// Start of a cost file (format version 1).
+pub const COST_MAGIC: [u8; 8] = *b"SRCOST1\0";
+/// Name of the cost file the firmware writes in QEMU's working directory.
+pub const COST_FILE: &str = "simrod-cost.bin";
+/// Words of a cost record before the per-block words.
+pub const COST_FIXED_WORDS: usize = 3;
+/// Names of the profiled blocks, in record order: the call into the step (argument
+/// set-up, prologue), then model-core's `probe::Block`s.
+pub const COST_BLOCKS: [&str; 7] =
+    ["call", "rate logic", "tables", "controller", "mechanics", "electrics", "outputs"];

@@ -2,6 +2,7 @@
 //! serial frames a XiL host or a recorder speaks, and the trace hash.
 
 #[path = "../../firmware/src/protocol.rs"]
+#[allow(dead_code)] // the trace and cost formats are read by other tests
 mod protocol;
 
 use protocol::{Decoder, Fnv1a64, Frame};
@@ -20,6 +21,34 @@ fn checksums_and_hash_match_their_reference_values() {
     let mut b = Fnv1a64::default();
     b.write(&[0, 0, 0x80, 0x3f, 0, 0, 0, 0x80]);
     assert_eq!(a.0, b.0, "hash over the little-endian bits");
+}
+
+#[test]
+fn fletcher16_with_deferred_reduction_equals_the_per_byte_definition() {
+    // The firmware reduces the sums once per 5802 bytes; the definition, per byte.
+    let reference = |bytes: &[u8]| {
+        let (mut a, mut b) = (0u16, 0u16);
+        for &x in bytes {
+            a = (a + u16::from(x)) % 255;
+            b = (b + a) % 255;
+        }
+        (b << 8) | a
+    };
+    let mut x = 0x1234_5678u32;
+    let data: Vec<u8> = (0..20_000)
+        .map(|_| {
+            x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (x >> 24) as u8
+        })
+        .collect();
+    // All 0xff is the worst case for the u32 sums across a whole 5802-byte chunk.
+    let ones = vec![0xffu8; 12_000];
+    for len in [0, 1, 2, 254, 255, 256, 261, 5801, 5802, 5803, 11_604, 12_000] {
+        assert_eq!(protocol::fletcher16(&ones[..len]), reference(&ones[..len]), "0xff x {len}");
+    }
+    for len in (0..data.len()).step_by(997).chain([5802, 5803, 20_000]) {
+        assert_eq!(protocol::fletcher16(&data[..len]), reference(&data[..len]), "{len} bytes");
+    }
 }
 
 fn feed(d: &mut Decoder, bytes: &[u8]) -> Vec<Frame> {

@@ -79,17 +79,30 @@ impl Backlash {
     ) {
         let w_case = 0.5 * (x[0][W_A] + x[1][W_A]);
         if self.free {
-            self.w_m += motor_torque_axle / self.j_m * dt;
-            self.gap += (self.w_m - w_case) * dt;
-            if self.gap >= self.half_gap || self.gap <= -self.half_gap {
-                self.side = if self.gap > 0.0 { 1.0 } else { -1.0 };
-                self.gap = self.side * self.half_gap;
-                let impulse = (self.w_m - w_case) / (1.0 / self.j_m + 1.0 / (2.0 * self.j_side_free));
+            let w_m0 = self.w_m;
+            let w_m1 = w_m0 + motor_torque_axle / self.j_m * dt;
+            let gap1 = self.gap + (w_m1 - w_case) * dt;
+            if gap1 >= self.half_gap || gap1 <= -self.half_gap {
+                // Contact within the step, at the fraction where the gap closes: the motor
+                // flew freely until then, the impact is inelastic, and the motor torque of
+                // the rest of the step drives the engaged train. Locating the impact inside
+                // the step keeps the response continuous in the backlash (identifiable).
+                self.side = if gap1 > 0.0 { 1.0 } else { -1.0 };
+                let target = self.side * self.half_gap;
+                let span = gap1 - self.gap;
+                let f =
+                    if span != 0.0 { crate::num::clamp((target - self.gap) / span, 0.0, 1.0) } else { 1.0 };
+                self.gap = target;
+                let w_m_hit = w_m0 + motor_torque_axle / self.j_m * (f * dt);
+                let impulse = (w_m_hit - w_case) / (1.0 / self.j_m + 1.0 / (2.0 * self.j_side_free));
+                let rest = motor_torque_axle * ((1.0 - f) * dt) / (self.j_m + 2.0 * self.j_side_free);
                 for side in x.iter_mut() {
-                    side[W_A] += impulse / (2.0 * self.j_side_free);
+                    side[W_A] += impulse / (2.0 * self.j_side_free) + rest;
                 }
-                self.w_m -= impulse / self.j_m;
                 self.free = false;
+            } else {
+                self.w_m = w_m1;
+                self.gap = gap1;
             }
         } else {
             // Torque through the mesh: what the motor gives minus what accelerating its own

@@ -41,6 +41,8 @@ pub mod model;
 mod num;
 pub mod outputs;
 pub mod params;
+#[cfg(feature = "profile-hooks")]
+pub mod probe;
 pub mod profile;
 pub mod sim;
 pub mod table;

@@ -13,6 +13,15 @@ use crate::profile::SetPoints;
 use crate::table::{locate_hinted, Loc, Table2};
 use crate::throttle;
 
+/// A block boundary for the profiler (feature `profile-hooks`, see `probe`): calls the
+/// probe with the block that starts here. Expands to nothing without the feature.
+macro_rules! probe {
+    ($model:ident, $block:ident) => {
+        #[cfg(feature = "profile-hooks")]
+        ($model.probe)(crate::probe::Block::$block);
+    };
+}
+
 /// Smallest and largest step [µs] the model accepts.
 pub const DT_US_RANGE: (u32, u32) = (10, 10_000);
 
@@ -141,6 +150,9 @@ pub struct Model<'a> {
     hints: Hints,
     /// [K] connector temperature rise (`connector_resistance_drift`).
     conn_dtemp: f32,
+    /// Called at each block boundary of the step (feature `profile-hooks`).
+    #[cfg(feature = "profile-hooks")]
+    probe: crate::probe::Probe,
 }
 
 fn positive(v: f32) -> bool {
@@ -238,7 +250,16 @@ impl<'a> Model<'a> {
             backlash: Backlash::new(gap_rad, j_m, j_side_free),
             conn_dtemp: 0.0,
             hints: Hints::default(),
+            #[cfg(feature = "profile-hooks")]
+            probe: crate::probe::none,
         })
+    }
+
+    /// Set the probe [`Model::step`] calls at each block boundary (feature
+    /// `profile-hooks`).
+    #[cfg(feature = "profile-hooks")]
+    pub fn set_probe(&mut self, probe: crate::probe::Probe) {
+        self.probe = probe;
     }
 
     /// Step [µs].
@@ -298,6 +319,7 @@ impl<'a> Model<'a> {
 
     /// Advance one step with set points held over it; returns the outputs at the end.
     pub fn step(&mut self, inp: &Inputs) -> Outputs {
+        probe!(self, RateLogic);
         let p = self.p;
         let fx = self.fx;
         let dt = self.dt;
@@ -311,6 +333,7 @@ impl<'a> Model<'a> {
         let thr_sp = finite_pct(inp.sp.throttle_pct);
         let load_sp = [finite_pct(inp.sp.load_pct[0]), finite_pct(inp.sp.load_pct[1])];
         let (sg, grid) = (self.shared_grid, self.maps.sut_power);
+        probe!(self, Tables);
         let h = &mut self.hints;
         let q_thr = Self::query(sg, &grid, thr_sp, true, &mut h.thr);
         let q_load = [
@@ -319,13 +342,16 @@ impl<'a> Model<'a> {
         ];
 
         // Throttle chain and Curtis rate logic.
+        probe!(self, RateLogic);
         let thr_ctl = self.delayed_throttle(thr_sp);
+        probe!(self, Tables);
         let mapped = self
             .maps
             .throttle_input
             .eval_hinted(throttle::voltage(&p, thr_ctl), &mut self.hints.throttle_input);
         let target =
             throttle::target_speed_rpm(&self.maps, &p, self.mode, mapped, thr_ctl, &mut self.hints.speed);
+        probe!(self, RateLogic);
         let n = p.sut_gear_ratio;
         let [xl, xr] = self.x;
         let w_case = 0.5 * (xl[W_A] + xr[W_A]);
@@ -342,6 +368,7 @@ impl<'a> Model<'a> {
             curtis::advance_compensated(self.cmd_rpm, self.cmd_lo, target, rate, dt);
 
         // Speed controller -> motor torque -> gearbox -> open differential.
+        probe!(self, Controller);
         let t_motor = self.pid.update(&p, self.cmd_rpm * RAD_S_PER_RPM, w_motor, dt);
         let df = fx.differential_friction;
         let t_diff = df.coulomb_nm * (w_case / DIFF_FRICTION_EPS).clamp(-1.0, 1.0) + df.viscous_nm_s * w_case;
@@ -349,6 +376,7 @@ impl<'a> Model<'a> {
         let discs = if self.backlash.is_free() { &self.disc_free } else { &self.disc };
 
         // Per side: friction and load motor at the load node, exact linear update.
+        probe!(self, Mechanics);
         let fade = p.regen_fade_rpm * RAD_S_PER_RPM;
         let drive_dir = if thr_sp < 0.0 { -1.0 } else { 1.0 };
         let mut t_load = [0.0f32; 2];
@@ -360,18 +388,22 @@ impl<'a> Model<'a> {
         {
             let w_l = x[W_L];
             let w_rpm = w_l * RPM_PER_RAD_S;
+            probe!(self, Tables);
             let hint = &mut self.hints.friction[i];
             let fric_nominal = self.maps.friction[i].eval_hinted(w_rpm, hint);
+            probe!(self, Mechanics);
             let mut fric = fric_nominal * fx.axle_friction_scale[i];
             let st = fx.stribeck_friction;
             if st.peak_nm > 0.0 {
                 let r = w_rpm / st.speed_rpm;
                 fric += st.peak_nm * micromath::F32(-(r * r)).exp().0 * (w_rpm / 0.5).clamp(-1.0, 1.0);
             }
+            probe!(self, Tables);
             let t_map = match (self.shared_grid, q_load.get(i)) {
                 (true, Some(q)) => self.maps.load_torque[i].eval_loc(q_thr.loc, q.loc),
                 _ => self.maps.load_torque[i].eval(thr_sp, load_sp[i]),
             };
+            probe!(self, Mechanics);
             // Regenerating torque brakes whatever way the shaft turns and fades out near
             // standstill (nothing left to regenerate); motoring drives in the run direction.
             *tl = if t_map >= 0.0 {
@@ -393,6 +425,7 @@ impl<'a> Model<'a> {
         }
 
         // Electrics: maps -> rate limiters -> currents; supply current is the sum.
+        probe!(self, Tables);
         let load_mean = 0.5 * (load_sp[0] + load_sp[1]);
         let regen = |pw: f32| {
             if pw < 0.0 {
@@ -411,6 +444,7 @@ impl<'a> Model<'a> {
             self.map2(&self.maps.load_current[0], q_thr, q_load[0]),
             self.map2(&self.maps.load_current[1], q_thr, q_load[1]),
         ];
+        probe!(self, Electrics);
         // Unmapped power: the SuT power map is a steady-state identity of the set points.
         // Mechanical power the motor delivers beyond what the mapped friction and loads
         // absorb (accelerating inertias, charging springs, losses the thesis model lacks)
@@ -458,6 +492,7 @@ impl<'a> Model<'a> {
         }
 
         self.t_us += u64::from(self.dt_us);
+        probe!(self, Outputs);
         self.outputs(&StepSignals {
             thr_sp,
             load_sp,

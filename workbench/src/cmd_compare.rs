@@ -3,16 +3,24 @@
 //!
 //! Arguments and files are checked before the comparison runs (exit code 2, as for
 //! every bad input); only writing the report can fail afterwards (exit code 1).
+//!
+//! Every comparison is appended to the measurement's history
+//! (`<stem>.simrod-history.jsonl`, [`crate::history`]; `--no-history` skips it); a
+//! history that cannot be written is a warning, not a failed comparison. The report
+//! draws the previous iteration's simulation ("before") under this one where the error
+//! moved, when the effects changed since then (or against `--baseline-effects`).
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::Args;
 use model_core::{Builtin, Effects};
 
-use crate::compare::{compare, CompareOptions, InputSource};
+use crate::compare::{compare, CompareOptions, CompareResult, InputSource};
 use crate::effects_file::load_effects;
 use crate::error::CmdError;
+use crate::history::{self, Entry};
+use crate::iterate;
 use crate::measure::{self, LoadOptions, Mapping};
 use crate::report::{html, json, table};
 use crate::simulate::{parse_builtin, parse_scale, parse_supply_v, CouplingArg, RatesArg, SpeedTargetArg};
@@ -66,6 +74,11 @@ pub struct CompareArgs {
     #[arg(long, value_name = "FILE")]
     pub mapping: Option<PathBuf>,
 
+    /// Model data directory (parameters.toml + CSV maps, the format of model-core/data)
+    /// for the twin instead of the built-in data: an altered or identified model.
+    #[arg(long, value_name = "DIR")]
+    pub data_dir: Option<PathBuf>,
+
     /// Interpolate across gaps in the time axis instead of refusing the file.
     #[arg(long)]
     pub allow_gaps: bool,
@@ -98,6 +111,16 @@ pub struct CompareArgs {
     /// Also write DIR/index.html (self-contained; DIR is created if missing).
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
+
+    /// Do not append this comparison to the measurement's history
+    /// (`<stem>.simrod-history.jsonl` next to MEAS; see `simrod history`).
+    #[arg(long)]
+    pub no_history: bool,
+
+    /// Draw the report's before/after overlay against the twin with these effects
+    /// (default: the previous history record's effects, when they differ from --effects).
+    #[arg(long, value_name = "FILE.toml")]
+    pub baseline_effects: Option<PathBuf>,
 }
 
 /// `--window-s` value: finite and > 0.
@@ -108,12 +131,25 @@ pub fn parse_window(s: &str) -> Result<f64, String> {
     }
 }
 
-/// Run `simrod compare`.
-pub fn execute(args: &CompareArgs) -> Result<(), CmdError> {
+/// A finished comparison and what it left on disk.
+#[derive(Debug, Clone)]
+pub struct Compared {
+    pub result: CompareResult,
+    /// The history file, when this comparison was appended to it.
+    pub history: Option<PathBuf>,
+    /// The report, when asked for.
+    pub report: Option<PathBuf>,
+    /// Things that went wrong on the side (history unreadable or not writable).
+    pub warnings: Vec<String>,
+}
+
+/// Compare, record in the history, write the report; prints nothing.
+pub fn run(args: &CompareArgs) -> Result<Compared, CmdError> {
     let effects = match &args.effects {
         Some(p) => load_effects(p)?,
         None => Effects::NONE,
     };
+    let baseline_fx = args.baseline_effects.as_deref().map(load_effects).transpose()?;
     let load_opts = LoadOptions {
         mapping: args.mapping.as_deref().map(Mapping::load).transpose()?,
         allow_gaps: args.allow_gaps,
@@ -136,6 +172,10 @@ pub fn execute(args: &CompareArgs) -> Result<(), CmdError> {
         supply_v: args.supply_v,
         inputs,
         window_s: args.window_s,
+        data: match &args.data_dir {
+            Some(dir) => Some(std::sync::Arc::new(crate::datadir::ModelData::load(dir)?)),
+            None => None,
+        },
         ..CompareOptions::default()
     };
     let mut result = compare(&loaded.measurement, &opts)
@@ -147,22 +187,85 @@ pub fn execute(args: &CompareArgs) -> Result<(), CmdError> {
     notes.append(&mut result.notes);
     result.notes = notes;
 
+    // The history: read before appending (the previous record is the report's baseline).
+    let hist_path = history::path_for(&args.meas);
+    let mut warnings = Vec::new();
+    let mut past = history::read(&hist_path).unwrap_or_else(|e| {
+        warnings.push(format!("{}: cannot read the history: {e}", hist_path.display()));
+        history::History::default()
+    });
+    warnings.append(&mut past.warnings);
+    let before = match (baseline_fx, &args.baseline_effects) {
+        (Some(fx), Some(p)) => Some((fx, format!("--baseline-effects {}", p.display()))),
+        _ => iterate::previous_effects(&past, &effects),
+    };
+    let mut rec = iterate::options_rec(&opts, &result, args.mapping.as_deref(), args.allow_gaps);
+    rec.data_dir = args.data_dir.as_ref().map(|p| p.display().to_string());
+    let entry = Entry::new(&result, &args.meas, &effects, args.effects.as_deref(), rec);
+    let mut recorded = None;
+    if !args.no_history {
+        match history::append(&hist_path, &entry) {
+            Ok(()) => {
+                past.entries.push(entry);
+                recorded = Some(hist_path.clone());
+            }
+            Err(e) => warnings.push(format!("{}: history not recorded: {e}", hist_path.display())),
+        }
+    }
+
+    let report = match &args.report {
+        Some(dir) => Some(write_report(dir, &loaded.measurement, &opts, &result, before, &past, &hist_path)?),
+        None => None,
+    };
+    Ok(Compared { result, history: recorded, report, warnings })
+}
+
+/// The report with its extras: the before/after overlay against `before` (effects and
+/// where they came from) and the history section.
+fn write_report(
+    dir: &Path,
+    meas: &measure::Measurement,
+    opts: &CompareOptions,
+    result: &CompareResult,
+    before: Option<(Effects, String)>,
+    past: &history::History,
+    hist_path: &Path,
+) -> Result<PathBuf, CmdError> {
+    let baseline = before
+        .map(|(fx, origin)| iterate::baseline(meas, opts, fx, origin))
+        .transpose()
+        .map_err(|e| CmdError::Runtime(format!("baseline run: {e}")))?;
+    let extras = html::Extras {
+        baseline,
+        history: (!past.entries.is_empty()).then(|| iterate::history_view(hist_path, &past.entries)),
+    };
+    html::write_report_with(dir, result, &extras)
+        .map_err(|e| CmdError::Runtime(format!("{}: {e}", dir.display())))
+}
+
+/// Run `simrod compare`.
+pub fn execute(args: &CompareArgs) -> Result<(), CmdError> {
+    let c = run(args)?;
+    for w in &c.warnings {
+        eprintln!("warning: {w}");
+    }
     let text = if args.json {
-        let mut s = serde_json::to_string_pretty(&json::to_json(&result))
+        let mut s = serde_json::to_string_pretty(&json::to_json(&c.result))
             .map_err(|e| CmdError::Runtime(format!("JSON: {e}")))?;
         s.push('\n');
         s
     } else {
-        table::render(&result)
+        table::render(&c.result)
     };
     let mut out = std::io::stdout().lock();
     out.write_all(text.as_bytes())
         .and_then(|()| out.flush())
         .map_err(|e| CmdError::Runtime(format!("stdout: {e}")))?;
-    if let Some(dir) = &args.report {
-        let path = html::write_report(dir, &result)
-            .map_err(|e| CmdError::Runtime(format!("{}: {e}", dir.display())))?;
-        // Keep stdout pure JSON under --json.
+    // Keep stdout pure JSON under --json.
+    if let Some(h) = &c.history {
+        eprintln!("history: {}", h.display());
+    }
+    if let Some(path) = &c.report {
         eprintln!("report: {}", path.display());
     }
     Ok(())

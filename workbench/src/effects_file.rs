@@ -240,6 +240,26 @@ pub fn format_effects(fx: &Effects) -> Result<String, String> {
     Ok(out)
 }
 
+/// One line naming the effects that differ from the thesis model, for tables and
+/// history records: `differential_friction(coulomb_nm=4, viscous_nm_s_per_rad=0)`, or
+/// `none`. Same selection as [`format_effects`] (a whole section per effect that is on).
+pub fn summarize_effects(fx: &Effects) -> String {
+    let mut parts = Vec::new();
+    for (id, params) in EFFECT_PARAMS {
+        if !params.iter().any(|p| get_param(fx, id, p) != get_param(&Effects::NONE, id, p)) {
+            continue;
+        }
+        let values: Vec<String> =
+            params.iter().filter_map(|p| get_param(fx, id, p).map(|v| format!("{p}={v}"))).collect();
+        parts.push(format!("{id}({})", values.join(", ")));
+    }
+    if parts.is_empty() {
+        "none".into()
+    } else {
+        parts.join(" + ")
+    }
+}
+
 /// Write an effect file atomically (see [`format_effects`]); `load_effects` gives
 /// back the same `Effects`.
 pub fn write_effects(fx: &Effects, path: &Path) -> Result<(), FileError> {
@@ -373,6 +393,18 @@ mod tests {
         assert_eq!(text.matches('[').count(), 1, "{text}");
         let back = load_effects(&path).unwrap();
         assert_eq!(back.torque_sensor_offset[1].to_bits(), 1.5e-7f32.to_bits());
+    }
+
+    #[test]
+    fn summary_names_only_effects_that_are_on() {
+        assert_eq!(summarize_effects(&Effects::NONE), "none");
+        let mut fx = Effects::NONE;
+        fx.differential_friction.coulomb_nm = 4.0;
+        fx.controller_delay_s = 0.012;
+        assert_eq!(
+            summarize_effects(&fx),
+            "differential_friction(coulomb_nm=4, viscous_nm_s_per_rad=0) + controller_delay(delay_s=0.012)"
+        );
     }
 
     #[test]

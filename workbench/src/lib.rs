@@ -5,14 +5,23 @@
 
 pub mod atomic;
 pub mod cmd_compare;
+pub mod cmd_diagnose;
+pub mod cmd_history;
+pub mod cmd_identify;
 pub mod compare;
+pub mod datadir;
+pub mod demo;
 pub mod diagnose;
 pub mod effects_file;
 pub mod error;
+pub mod history;
+pub mod identify;
+pub mod iterate;
 pub mod measure;
 pub mod profile_file;
 pub mod report;
 pub mod sensor_model;
+pub mod sha256;
 pub mod sim_csv;
 pub mod simulate;
 pub mod summary;

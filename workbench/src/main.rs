@@ -28,6 +28,19 @@ enum Command {
     /// Run the twin on a measured run's inputs and show where they disagree: per
     /// channel, per operating region, worst time spans, residual structure.
     Compare(workbench::cmd_compare::CompareArgs),
+    /// Which physical effect does the model lack? Rank the effect library against a
+    /// measured run, refit the best, give uncertainties and a verdict; write the effect
+    /// file that adds it.
+    Diagnose(workbench::cmd_diagnose::DiagnoseArgs),
+    /// The error per channel over the iterations of `simrod compare` on a measurement.
+    History(workbench::cmd_history::HistoryArgs),
+    /// The whole improve-the-model loop in one command: measure a run with a hidden
+    /// effect, compare, diagnose, add the effect, compare again.
+    Demo(workbench::demo::DemoArgs),
+    /// Rebuild the model's maps and parameters from a measured campaign (thesis
+    /// chapter 5): writes a complete data directory (for --data-dir or model-core/data),
+    /// report.md and charts.
+    Identify(workbench::cmd_identify::IdentifyArgs),
 }
 
 fn dispatch(command: Command) -> Result<(), CmdError> {
@@ -35,6 +48,10 @@ fn dispatch(command: Command) -> Result<(), CmdError> {
         Command::Simulate(args) => simulate::execute(&args),
         Command::Bench(args) => workbench::vbench::execute(&args),
         Command::Compare(args) => workbench::cmd_compare::execute(&args),
+        Command::Diagnose(args) => workbench::cmd_diagnose::execute(&args),
+        Command::History(args) => workbench::cmd_history::execute(&args),
+        Command::Demo(args) => workbench::demo::execute(&args),
+        Command::Identify(args) => workbench::cmd_identify::execute(&args),
     }
 }
 

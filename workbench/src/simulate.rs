@@ -7,6 +7,7 @@
 
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use clap::{Args, ValueEnum};
@@ -14,11 +15,12 @@ use model_core::effects::DELAY_CAPACITY;
 use model_core::model::DT_US_RANGE;
 use model_core::profile::MAX_SETS;
 use model_core::{
-    Builtin, Config, ConfigError, CouplingStiffness, Effects, Params, Profile, ProfileError, RateSet,
+    Builtin, Config, ConfigError, CouplingStiffness, Effects, Model, Params, Profile, ProfileError, RateSet,
     Simulation, SpeedTarget, N_CHANNELS,
 };
 
 use crate::atomic::write_atomic;
+use crate::datadir::ModelData;
 use crate::effects_file::load_effects;
 use crate::error::{CmdError, FileError};
 use crate::profile_file::{load_profile, SCALE_RANGE};
@@ -67,6 +69,12 @@ pub struct SimulateArgs {
     /// Effect file (TOML) switching on effects beyond the thesis model.
     #[arg(long, value_name = "FILE.toml")]
     pub effects: Option<PathBuf>,
+
+    /// Model data directory (parameters.toml and the CSV maps, the format of
+    /// model-core/data) to run instead of the built-in data: an altered or identified
+    /// model without rebuilding. Its profiles/ (if any) replace the built-in profiles.
+    #[arg(long, value_name = "DIR")]
+    pub data_dir: Option<PathBuf>,
 
     /// Output CSV; replaced atomically, so a failed run keeps the previous file
     /// (a device or FIFO such as /dev/null or /dev/stdout is written directly).
@@ -212,13 +220,22 @@ pub struct RunSpec {
     pub config: Config,
     pub profile: Profile,
     pub supply_v: f32,
+    /// Maps from `--data-dir` (`None`: the built-in maps).
+    pub data: Option<Arc<ModelData>>,
 }
 
 impl RunSpec {
     /// The simulation this spec describes.
-    pub fn simulation(&self) -> Result<Simulation<'static>, CmdError> {
-        Simulation::new(&self.config, self.profile.clone(), self.supply_v)
-            .map_err(|e| CmdError::Usage(config_error(e)))
+    pub fn simulation(&self) -> Result<Simulation<'_>, CmdError> {
+        let model = match &self.data {
+            None => Model::new(&self.config),
+            Some(d) => {
+                let maps = d.maps().map_err(|e| CmdError::Usage(format!("--data-dir: {e}")))?;
+                Model::with_maps(&self.config, maps)
+            }
+        };
+        let model = model.map_err(|e| CmdError::Usage(config_error(e)))?;
+        Ok(Simulation::from_model(model, self.profile.clone(), self.supply_v))
     }
 }
 
@@ -249,11 +266,16 @@ impl SimulateArgs {
         let dt_us = usage("--dt-us", check_dt_us(self.dt_us))?;
         let supply_v = usage("--supply-v", check_supply_v(self.supply_v))?;
 
+        let data = match &self.data_dir {
+            Some(dir) => Some(Arc::new(ModelData::load(dir).map_err(|e| file_error("--data-dir", e))?)),
+            None => None,
+        };
         let (profile, name, ts, ls) = match (&self.source.profile, &self.source.profile_file) {
             (Some(b), None) => {
                 let (ts, ls) = (throttle_scale.unwrap_or(1.0), load_scale.unwrap_or(1.0));
+                let sets = data.as_deref().and_then(|d| d.profile(b.name())).unwrap_or(b.sets());
                 let p =
-                    Profile::builtin(*b, ts, ls).map_err(|e| CmdError::Usage(profile_error(e, b.name())))?;
+                    Profile::new(sets, ts, ls).map_err(|e| CmdError::Usage(profile_error(e, b.name())))?;
                 (p, b.name().to_string(), ts, ls)
             }
             (None, Some(path)) => {
@@ -284,20 +306,20 @@ impl SimulateArgs {
             None => Effects::NONE,
         };
 
-        let config = Config {
-            dt_us,
-            params: Params::thesis(self.params.into(), self.coupling.into()),
-            speed_target: self.speed_target.into(),
-            effects,
+        let params = match &data {
+            Some(d) => d.params(self.params.into(), self.coupling.into()),
+            None => Params::thesis(self.params.into(), self.coupling.into()),
         };
+        let config = Config { dt_us, params, speed_target: self.speed_target.into(), effects };
         let title = format!(
-            "{name}: throttle x{ts}, load x{ls} | dt {dt_us} µs | supply {supply_v} V | rates {}, speed target {}, coupling {} | effects {}",
+            "{name}: throttle x{ts}, load x{ls} | dt {dt_us} µs | supply {supply_v} V | rates {}, speed target {}, coupling {} | effects {} | data {}",
             value_name(self.params),
             value_name(self.speed_target),
             value_name(self.coupling),
             self.effects.as_deref().map_or("none".to_string(), |p| p.display().to_string()),
+            self.data_dir.as_deref().map_or("built-in".to_string(), |p| p.display().to_string()),
         );
-        let spec = RunSpec { title, config, profile, supply_v };
+        let spec = RunSpec { title, config, profile, supply_v, data };
         spec.simulation()?; // the model's own checks, before any output is touched
         Ok(spec)
     }

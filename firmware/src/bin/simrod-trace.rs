@@ -7,7 +7,7 @@
 #![no_main]
 
 use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::{nr, syscall};
+use firmware::hostio::{HostFile, HostOut};
 use firmware::protocol::{self, Fnv1a64};
 use firmware::step::{simrod_profile_at, simrod_step};
 use model_core::{Builtin, Inputs, Model, Outputs, Profile, RateSet, N_CHANNELS};
@@ -22,63 +22,8 @@ const RECORD: usize = 8 + 4 * N_CHANNELS;
 /// larger writes are what makes the trace fast.
 const BATCH: usize = 64;
 
-/// A file on the host, through semihosting (`SYS_OPEN`/`SYS_WRITE`/`SYS_CLOSE`).
-struct HostFile(usize);
-
-impl HostFile {
-    /// Create or truncate `name` (NUL-terminated) for binary writing.
-    fn create(name: &str) -> Option<Self> {
-        let len = name.len().checked_sub(1)?;
-        // SAFETY: SYS_OPEN reads `len` bytes of the NUL-terminated name, which lives on.
-        let fd = unsafe { syscall!(OPEN, name.as_ptr(), nr::open::W_TRUNC_BINARY, len) };
-        (fd as isize != -1).then_some(Self(fd))
-    }
-
-    fn write_all(&mut self, mut data: &[u8]) -> bool {
-        while !data.is_empty() {
-            // SAFETY: the host reads `data.len()` bytes from a live slice.
-            let left = unsafe { syscall!(WRITE, self.0, data.as_ptr(), data.len()) };
-            match data.len().checked_sub(left) {
-                Some(done) if left < data.len() => data = data.get(done..).unwrap_or(&[]),
-                _ => return left == 0,
-            }
-        }
-        true
-    }
-
-    fn close(self) -> bool {
-        // SAFETY: closes the handle this value owns.
-        unsafe { syscall!(CLOSE, self.0) == 0 }
-    }
-}
-
-/// A buffered writer to the host file; any host error fails the run.
-struct Out {
-    file: HostFile,
-    buf: [u8; RECORD * BATCH],
-    len: usize,
-}
-
-impl Out {
-    fn put(&mut self, bytes: &[u8]) {
-        if self.len + bytes.len() > self.buf.len() {
-            self.flush();
-        }
-        match self.buf.get_mut(self.len..self.len + bytes.len()) {
-            Some(dst) => dst.copy_from_slice(bytes),
-            None => defmt::panic!("trace record larger than the buffer"),
-        }
-        self.len += bytes.len();
-    }
-
-    fn flush(&mut self) {
-        let data = self.buf.get(..self.len).unwrap_or(&[]);
-        if !self.file.write_all(data) {
-            defmt::panic!("semihosting write failed");
-        }
-        self.len = 0;
-    }
-}
+/// The trace file's writer.
+type Out = HostOut<{ RECORD * BATCH }>;
 
 /// Positive control for the ELF check in `host-tests/tests/firmware_elf.rs`: an
 /// unchecked index, i.e. a panic path the check must find. Never part of the step.
@@ -136,7 +81,7 @@ fn main() -> ! {
     let Some(file) = HostFile::create(concat!("simrod-trace.bin", "\0")) else {
         defmt::panic!("cannot create {=str} on the host", protocol::TRACE_FILE);
     };
-    let mut out = Out { file, buf: [0; RECORD * BATCH], len: 0 };
+    let mut out = Out::new(file);
     out.put(&protocol::TRACE_MAGIC);
     out.put(&(N_CHANNELS as u16).to_le_bytes());
     out.put(&firmware::STEP_US.to_le_bytes());
@@ -157,10 +102,7 @@ fn main() -> ! {
     }
     out.put(&protocol::DONE_MAGIC);
     out.put(&runs.to_le_bytes());
-    out.flush();
-    if !out.file.close() {
-        defmt::panic!("closing the trace file failed");
-    }
+    out.finish();
     firmware::exit(true)
 }
 

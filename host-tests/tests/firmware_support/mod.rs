@@ -12,7 +12,6 @@
 
 #![allow(dead_code)] // each test binary uses a part
 
-use std::ffi::OsString;
 use std::fs;
 use std::io::Read as _;
 use std::path::{Path, PathBuf};
@@ -41,10 +40,6 @@ pub fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("host-tests sits in the workspace").to_path_buf()
 }
 
-fn cargo() -> OsString {
-    std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into())
-}
-
 /// `target/firmware-tests/<sub>` (see the module docs).
 pub fn firmware_target_dir(sub: &str) -> PathBuf {
     let base = match std::env::var_os("CARGO_TARGET_DIR") {
@@ -56,7 +51,8 @@ pub fn firmware_target_dir(sub: &str) -> PathBuf {
 }
 
 /// The binaries of the firmware crate.
-pub const BINARIES: [&str; 2] = ["firmware", "simrod-trace"];
+#[allow(unused_imports)] // each test binary uses a part
+pub use host_tests::rt::BINARIES;
 
 /// Serializes build + copy within this test process.
 static BUILD: Mutex<()> = Mutex::new(());
@@ -86,44 +82,14 @@ pub fn require_tools() {
     }
 }
 
-/// Build both firmware binaries (release) with the effects file `effects` compiled in
+/// Build the firmware binaries (release) with the effects file `effects` compiled in
 /// (or none); the directory `target/firmware-tests/<variant>` holding their ELFs.
 pub fn build_firmware(variant: &str, effects: Option<&Path>) -> PathBuf {
     require_tools();
     let _guard = BUILD.lock().unwrap_or_else(|e| e.into_inner());
-    let target_dir = firmware_target_dir("build");
-    let mut cmd = Command::new(cargo());
-    cmd.current_dir(root())
-        .args(["build", "-p", "firmware", "--release", "--bins", "--target", TARGET])
-        .arg("--target-dir")
-        .arg(&target_dir)
-        // Only what .cargo/config.toml says may shape the build.
-        .env_remove("RUSTFLAGS")
-        .env_remove("CARGO_ENCODED_RUSTFLAGS")
-        .env_remove("CARGO_BUILD_RUSTFLAGS")
-        .env_remove("CARGO_BUILD_TARGET")
-        .env_remove("SIMROD_PROFILE")
-        .env_remove("SIMROD_RATES")
-        .env_remove("SIMROD_MEMORY_X");
-    match effects {
-        Some(p) => cmd.env("SIMROD_EFFECTS", p),
-        None => cmd.env_remove("SIMROD_EFFECTS"),
-    };
     let t0 = Instant::now();
-    let out = cmd.output().expect("run cargo");
-    assert!(
-        out.status.success(),
-        "building the firmware ({variant}) failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let dir = host_tests::rt::build_firmware(variant, effects, &[]).unwrap_or_else(|e| panic!("{e}"));
     eprintln!("firmware ({variant}) built in {:.1} s", t0.elapsed().as_secs_f64());
-    let built = target_dir.join(TARGET).join("release");
-    let dir = firmware_target_dir(variant);
-    fs::create_dir_all(&dir).expect("create the variant directory");
-    for bin in BINARIES {
-        fs::copy(built.join(bin), dir.join(bin))
-            .unwrap_or_else(|e| panic!("copy {bin} to {}: {e}", dir.display()));
-    }
     dir
 }
 

@@ -17,7 +17,7 @@
 //! channels and set points are resampled onto a 1 ms grid by linear interpolation.
 
 use model_core::model::DT_US_RANGE;
-use model_core::{Builtin, Channel, Config, Inputs, Model, Params, Profile, SetPoints, MEASURED};
+use model_core::{Channel, Config, Inputs, Model, Params, Profile, ProfileSet, SetPoints, MEASURED};
 
 use super::{CompareError, CompareOptions, InputSource};
 use crate::measure::{Measurement, GAP_CHANNEL, SETPOINT_LOAD_L, SETPOINT_LOAD_R, SETPOINT_THROTTLE};
@@ -182,17 +182,21 @@ pub fn align(meas: &Measurement, opts: &CompareOptions) -> Result<Aligned, Compa
             [a, b, c]
         }
         InputSource::Profile { which, throttle_scale, load_scale } => {
-            profile_set_points(*which, *throttle_scale, *load_scale, &time_s, dt_us)?
+            let sets = opts.data.as_deref().and_then(|d| d.profile(which.name())).unwrap_or(which.sets());
+            profile_set_points(sets, *throttle_scale, *load_scale, &time_s, dt_us)?
         }
     };
 
-    let cfg = Config {
-        dt_us,
-        params: Params::thesis(opts.rates, opts.coupling),
-        speed_target: opts.speed_target,
-        effects: opts.effects,
+    let params = match &opts.data {
+        Some(d) => d.params(opts.rates, opts.coupling),
+        None => Params::thesis(opts.rates, opts.coupling),
     };
-    let mut model = Model::new(&cfg).map_err(|e| CompareError::Model(format!("{e:?}")))?;
+    let cfg = Config { dt_us, params, speed_target: opts.speed_target, effects: opts.effects };
+    let model = match &opts.data {
+        Some(d) => Model::with_maps(&cfg, d.maps().map_err(|e| CompareError::Model(e.to_string()))?),
+        None => Model::new(&cfg),
+    };
+    let mut model = model.map_err(|e| CompareError::Model(format!("{e:?}")))?;
 
     // Which measured channels the file has, on the grid.
     let mut present: Vec<(Channel, Vec<f64>)> = Vec::new();
@@ -271,13 +275,13 @@ fn snap_to_f32(meas: &mut [f64], sim: &[f64]) {
 
 /// Set points of a built-in profile at each row: profile clock = row time − one step.
 fn profile_set_points(
-    which: Builtin,
+    sets: &[ProfileSet],
     throttle_scale: f32,
     load_scale: f32,
     time_s: &[f64],
     dt_us: u32,
 ) -> Result<[Vec<f64>; 3], CompareError> {
-    let profile = Profile::builtin(which, throttle_scale, load_scale)
+    let profile = Profile::new(sets, throttle_scale, load_scale)
         .map_err(|e| CompareError::Profile(format!("{e:?}")))?;
     let mut out = [
         Vec::with_capacity(time_s.len()),

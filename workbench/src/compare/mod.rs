@@ -17,10 +17,12 @@ pub mod spans;
 #[cfg(test)]
 mod tests;
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use model_core::{Builtin, CouplingStiffness, Effects, Maps, Params, RateSet, SpeedTarget};
 
+use crate::datadir::ModelData;
 use crate::measure::Measurement;
 use budget::RegionShare;
 use metrics::Metrics;
@@ -62,6 +64,9 @@ pub struct CompareOptions {
     /// Top combined regions listed per channel.
     pub top_regions: usize,
     pub rules: RegionRules,
+    /// Model data (`--data-dir`): maps, parameters and profiles instead of the built-in
+    /// ones. `None`: the twin compiled into the binary.
+    pub data: Option<Arc<ModelData>>,
 }
 
 impl Default for CompareOptions {
@@ -79,6 +84,7 @@ impl Default for CompareOptions {
             max_lag_s: 1.0,
             top_regions: 3,
             rules: RegionRules::default(),
+            data: None,
         }
     }
 }
@@ -196,7 +202,13 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
     let n = al.time_s.len();
     let dt_s = f64::from(al.dt_us) * 1e-6;
 
-    let limits = regions::Limits::of(&Params::thesis(opts.rates, opts.coupling), &Maps::builtin());
+    let limits = match &opts.data {
+        Some(d) => {
+            let maps = d.maps().map_err(|e| CompareError::Model(e.to_string()))?;
+            regions::Limits::of(&d.params(opts.rates, opts.coupling), &maps)
+        }
+        None => regions::Limits::of(&Params::thesis(opts.rates, opts.coupling), &Maps::builtin()),
+    };
     let classes = regions::classify(&al, &opts.rules, &limits);
 
     // Inputs for the cross-correlation: the set points (the correlator adds their

@@ -1,7 +1,7 @@
 //! Which physical effect is missing? Ranking, refit, uncertainty, confounding, verdict.
 //!
 //! 1. Residual of the current model, and each channel's noise level estimated from the
-//!    residual minus its 51-sample moving average (model errors are slow, measurement
+//!    residual minus its 0.25 s moving average (model errors are slow, measurement
 //!    noise — even coloured by an encoder's counting window — is fast), so every channel
 //!    enters the fit weighted by `1/σ²`.
 //! 2. Sensitivity of every measured channel to every library parameter (one simulation
@@ -11,11 +11,12 @@
 //!    incremental reduction given the effects already chosen.
 //! 4. Confirmation: a Levenberg–Marquardt refit of the best candidates on the real
 //!    (nonlinear) simulator; the error it removes, measured, not predicted.
-//! 5. Uncertainty: a block wild bootstrap of the refit residual — each residual stays
-//!    where it is, whole blocks (longer than the residual's correlation time) flip sign at
-//!    random — propagated through the refit Jacobian. Honest when residuals are
-//!    autocorrelated and when the noise grows where the effect shows (at the operating
-//!    limits), both of which a bench's residuals are.
+//! 5. Uncertainty: a sandwich (HAC) covariance `G⁻¹ S G⁻¹` of the refit, where `S` comes
+//!    from a noise model fitted to the whole refit residual of each channel — its local
+//!    level (bench noise grows at the operating limits) and its autocorrelation (encoder
+//!    counting windows, coloured noise). Resampling the residual instead (a block
+//!    bootstrap) collapses when an effect shows in only a few transients: at the optimum
+//!    the residual there is orthogonal to the Jacobian. The noise model is not fooled.
 //! 6. Confounding: candidates whose predicted residual shapes nearly coincide are reported
 //!    as a group, with the profile (simulated, not guessed) that best separates them.
 //! 7. Verdict: a significant candidate that removes most of the excess error *and leaves a
@@ -196,6 +197,8 @@ pub struct Diagnosis {
     pub excess_ratio: f64,
     /// Estimated noise σ per channel.
     pub noise: Vec<(&'static str, f64)>,
+    /// The effect the verdict names (missing, or partly explaining), if any.
+    pub lead: Option<&'static str>,
     /// Every library effect, best first.
     pub ranking: Vec<Candidate>,
     /// Effects picked by the greedy selection, with their incremental reductions.
@@ -227,9 +230,10 @@ struct Prepared {
     idx: Vec<usize>,
 }
 
-/// Noise σ of a residual: the part faster than a `2h+1`-sample moving average, the 1 %
-/// largest values trimmed (transients of model error), corrected for both so that white
-/// Gaussian noise gives an unbiased estimate.
+/// Noise σ of a residual: the part faster than a `2h+1`-sample moving average, corrected
+/// for the average's own share so that white noise gives an unbiased estimate. Not
+/// trimmed: bench noise grows at the operating limits, and trimming would cut exactly
+/// that part.
 fn noise_sigma(r: &[f64], h: usize) -> f64 {
     let n = r.len();
     let k = 2 * h + 1;
@@ -240,14 +244,10 @@ fn noise_sigma(r: &[f64], h: usize) -> f64 {
     for (i, v) in r.iter().enumerate() {
         prefix[i + 1] = prefix[i] + v;
     }
-    let mut hp: Vec<f64> =
-        (h..n - h).map(|t| (r[t] - (prefix[t + h + 1] - prefix[t - h]) / k as f64).abs()).collect();
-    hp.sort_by(|a, b| a.total_cmp(b));
-    let keep = ((hp.len() as f64) * 0.99).ceil() as usize;
-    let kept = &hp[..keep.clamp(1, hp.len())];
-    let var = kept.iter().map(|v| v * v).sum::<f64>() / kept.len() as f64;
-    // E[x²; |x| < 2.576σ] = 0.9248σ² for a Gaussian; x - mean(k) has variance σ²(1 - 1/k).
-    (var / 0.9248 * k as f64 / (k as f64 - 1.0)).sqrt()
+    let hp = (h..n - h).map(|t| r[t] - (prefix[t + h + 1] - prefix[t - h]) / k as f64);
+    let var = hp.map(|v| v * v).sum::<f64>() / (n - 2 * h) as f64;
+    // x - mean(k) of white noise has variance σ²(1 - 1/k).
+    (var * k as f64 / (k as f64 - 1.0)).sqrt()
 }
 
 fn run_all(twin: &dyn Twin, jobs: &[Effects], threads: usize) -> Vec<Result<Vec<Vec<f32>>, String>> {
@@ -284,40 +284,18 @@ fn energy(p: &Prepared, sim: &[Vec<f32>]) -> f64 {
     e
 }
 
+/// Weighted squared error per channel.
+fn channel_energies(p: &Prepared, sim: &[Vec<f32>]) -> Vec<f64> {
+    p.meas
+        .iter()
+        .zip(sim)
+        .zip(&p.weights)
+        .map(|((m, s), w)| p.idx.iter().map(|&t| w * (m[t] - f64::from(s[t])).powi(2)).sum())
+        .collect()
+}
+
 fn rmse(m: &[f64], s: &[f64], idx: &[usize]) -> f64 {
     (idx.iter().map(|&t| (m[t] - s[t]).powi(2)).sum::<f64>() / idx.len().max(1) as f64).sqrt()
-}
-
-struct SplitMix(u64);
-impl SplitMix {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-}
-
-/// Lag (in fit samples) after which the mean residual autocorrelation first drops below
-/// 1/e: the block length of the bootstrap is a few of these.
-fn correlation_length(p: &Prepared, resid: &[Vec<f64>]) -> usize {
-    let n = p.idx.len();
-    let max_lag = (n / 4).max(1);
-    let mut acf = vec![0.0; max_lag + 1];
-    for (r, w) in resid.iter().zip(&p.weights) {
-        let mean = r.iter().sum::<f64>() / n.max(1) as f64;
-        for (lag, a) in acf.iter_mut().enumerate().step_by(((max_lag / 200).max(1)) as usize) {
-            let mut s = 0.0;
-            for t in 0..n - lag {
-                s += (r[t] - mean) * (r[t + lag] - mean);
-            }
-            *a += w * s;
-        }
-    }
-    let a0 = acf[0].max(1e-300);
-    let step = (max_lag / 200).max(1);
-    (1..=max_lag).step_by(step).find(|&l| acf[l] / a0 < (-1.0f64).exp()).unwrap_or(max_lag)
 }
 
 struct Fit {
@@ -325,6 +303,32 @@ struct Fit {
     sim: Vec<Vec<f32>>,
     jac: Vec<Vec<Vec<f64>>>,
     energy: f64,
+    /// One-parameter fits: (value, energy) of a fine scan around the optimum.
+    profile: Vec<(f64, f64)>,
+}
+
+/// Fine scan around a one-parameter optimum (±25 %, or ±4 steps for small values): moves
+/// to any better point (rugged objectives, e.g. backlash events, hide narrow basins from
+/// a local search) and keeps the scan for a profile interval.
+fn profile_scan(twin: &dyn Twin, p: &Prepared, o: &Options, s0: &ParamSpec, fit: &mut Fit) {
+    let v0 = fit.values[0];
+    let half = (0.25 * v0.abs()).max(4.0 * s0.delta * 0.25);
+    let (lo, hi) = ((v0 - half).max(s0.lower), (v0 + half).min(s0.upper));
+    let grid: Vec<f64> = (0..=24).map(|i| lo + (hi - lo) * f64::from(i) / 24.0).collect();
+    let jobs: Vec<Effects> = grid.iter().map(|v| with_values(&o.base, &[s0], &[*v])).collect();
+    let mut prof = vec![(v0, fit.energy)];
+    for (v, r) in grid.iter().zip(run_all(twin, &jobs, o.threads)) {
+        let Ok(y) = r else { continue };
+        let e = energy(p, &y);
+        prof.push((*v, e));
+        if e < fit.energy {
+            fit.energy = e;
+            fit.values = vec![*v];
+            fit.sim = y;
+        }
+    }
+    prof.sort_by(|a, b| a.0.total_cmp(&b.0));
+    fit.profile = prof;
 }
 
 /// Levenberg–Marquardt on the simulator for the parameters `specs`, from `start`.
@@ -338,6 +342,28 @@ fn refit(twin: &dyn Twin, p: &Prepared, o: &Options, specs: &[&ParamSpec], start
     clamp(&mut theta);
     let mut sim = twin.run(&with_values(&o.base, specs, &theta)).ok()?;
     let mut e = energy(p, &sim);
+    // One parameter: a coarse grid over its bounds first, so that a non-smooth or
+    // strongly nonlinear response (backlash events, a clipping limit) cannot trap the
+    // local search near the linear estimate.
+    if let [s0] = specs {
+        let (lo, hi) = (s0.lower, s0.upper);
+        let grid: Vec<f64> = if lo > 0.0 && hi / lo > 20.0 {
+            (0..16).map(|i| lo * (hi / lo).powf(f64::from(i) / 15.0)).collect()
+        } else {
+            (0..16).map(|i| lo + (hi - lo) * f64::from(i) / 15.0).collect()
+        };
+        let jobs: Vec<Effects> = grid.iter().map(|v| with_values(&o.base, specs, &[*v])).collect();
+        for (v, r) in grid.iter().zip(run_all(twin, &jobs, o.threads)) {
+            if let Ok(y) = r {
+                let ey = energy(p, &y);
+                if ey < e {
+                    e = ey;
+                    sim = y;
+                    theta = vec![*v];
+                }
+            }
+        }
+    }
     let mut lambda = 1e-3;
     let mut jac: Vec<Vec<Vec<f64>>> = Vec::new();
     for _iter in 0..8 {
@@ -395,6 +421,12 @@ fn refit(twin: &dyn Twin, p: &Prepared, o: &Options, specs: &[&ParamSpec], start
             clamp(&mut cand);
             let Ok(s2) = twin.run(&with_values(&o.base, specs, &cand)) else { break };
             let e2 = energy(p, &s2);
+            if std::env::var_os("SIMROD_DIAG_DEBUG").is_some() {
+                eprintln!(
+                    "  LM {}: theta {theta:?} e {e:.3} -> cand {cand:?} e2 {e2:.3} lambda {lambda:e}",
+                    specs[0].effect
+                );
+            }
             if e2 < e {
                 let rel = (e - e2) / e.max(1e-300);
                 theta = cand;
@@ -410,67 +442,97 @@ fn refit(twin: &dyn Twin, p: &Prepared, o: &Options, specs: &[&ParamSpec], start
             break;
         }
     }
-    Some(Fit { values: theta, sim, jac, energy: e })
+    let mut fit = Fit { values: theta, sim, jac, energy: e, profile: Vec::new() };
+    if let [s0] = specs {
+        profile_scan(twin, p, o, s0, &mut fit);
+    }
+    Some(fit)
 }
 
-/// Bootstrap std of the refit parameters: block wild bootstrap of the residual, pushed
-/// through the Gauss–Newton step at the optimum.
-fn bootstrap_std(p: &Prepared, o: &Options, fit: &Fit, block: usize) -> Vec<f64> {
+/// Standard deviations of the refit parameters from the sandwich covariance
+/// `G⁻¹ S G⁻¹`, `G = J'WJ`, `S = J'W Σ W J` with `Σ` each channel's noise: local standard
+/// deviation `s(t)` (moving RMS of the residual over `level_win` samples) times the
+/// autocorrelation `ρ(k)` of the standardised residual, up to the lag where it fades.
+fn sandwich_std(p: &Prepared, fit: &Fit, level_win: usize, max_lag: usize) -> Vec<f64> {
     let n = fit.values.len();
     let m = p.idx.len();
-    let resid: Vec<Vec<f64>> = p
-        .meas
-        .iter()
-        .zip(&fit.sim)
-        .map(|(mm, s)| p.idx.iter().map(|&t| mm[t] - f64::from(s[t])).collect())
-        .collect();
     let mut g = vec![0.0; n * n];
+    let mut sm = vec![0.0; n * n];
     for (c, w) in p.weights.iter().enumerate() {
-        for k in 0..m {
+        let r: Vec<f64> = p.idx.iter().map(|&t| p.meas[c][t] - f64::from(fit.sim[c][t])).collect();
+        // Local noise level: moving RMS, so at-limit noise weighs where it occurs.
+        let h = (level_win / 2).max(1);
+        let mut prefix = vec![0.0; m + 1];
+        for (k, v) in r.iter().enumerate() {
+            prefix[k + 1] = prefix[k] + v * v;
+        }
+        let level: Vec<f64> = (0..m)
+            .map(|k| {
+                let (lo, hi) = (k.saturating_sub(h), (k + h + 1).min(m));
+                // Floored at 0.1 % of the channel's noise: stretches with no residual at
+                // all (a shaft at rest) must not turn into infinite standardised values.
+                ((prefix[hi] - prefix[lo]) / (hi - lo) as f64).max(1e-6 / w).sqrt()
+            })
+            .collect();
+        let z: Vec<f64> = r.iter().zip(&level).map(|(a, b)| a / b).collect();
+        let z0: f64 = z.iter().map(|v| v * v).sum::<f64>().max(1e-300);
+        // Autocorrelation until it fades below 0.05 (at most `max_lag`).
+        let mut rho = vec![1.0];
+        for lag in 1..max_lag.min(m / 4).max(1) {
+            let a = (0..m - lag).map(|k| z[k] * z[k + lag]).sum::<f64>() / z0;
+            if a < 0.05 {
+                break;
+            }
+            rho.push(a);
+        }
+        // Jacobian columns scaled by the weight and the local level.
+        let u: Vec<Vec<f64>> =
+            (0..n).map(|i| (0..m).map(|k| w * fit.jac[i][c][k] * level[k]).collect()).collect();
+        // S = U' R U with R the Toeplitz matrix of ρ: convolve each column once.
+        let v: Vec<Vec<f64>> = u
+            .iter()
+            .map(|col| {
+                (0..m)
+                    .map(|k| {
+                        let mut acc = col[k];
+                        for (lag, rl) in rho.iter().enumerate().skip(1) {
+                            let left = if k >= lag { col[k - lag] } else { 0.0 };
+                            let right = col.get(k + lag).copied().unwrap_or(0.0);
+                            acc += rl * (left + right);
+                        }
+                        acc
+                    })
+                    .collect()
+            })
+            .collect();
+        for i in 0..n {
+            for j in 0..n {
+                sm[i * n + j] += u[i].iter().zip(&v[j]).map(|(a, b)| a * b).sum::<f64>();
+                g[i * n + j] += (0..m).map(|k| w * fit.jac[i][c][k] * fit.jac[j][c][k]).sum::<f64>();
+            }
+        }
+    }
+    // Cov = G⁻¹ S G⁻¹.
+    let mut ginv_s = vec![0.0; n * n];
+    for j in 0..n {
+        let col: Vec<f64> = (0..n).map(|i| sm[i * n + j]).collect();
+        if let Some(x) = solve_spd(&g, &col, 1e-12) {
             for i in 0..n {
-                for j in 0..n {
-                    g[i * n + j] += w * fit.jac[i][c][k] * fit.jac[j][c][k];
-                }
+                ginv_s[i * n + j] = x[i];
             }
         }
     }
-    let mut rng = SplitMix(o.seed);
-    let block = block.clamp(1, m.max(1));
-    let mut draws: Vec<Vec<f64>> = Vec::with_capacity(o.bootstrap);
-    // Each block's contribution J'W r, once; a replicate is a random-sign sum of them.
-    let blocks: Vec<Vec<f64>> = (0..m)
-        .step_by(block)
-        .map(|k0| {
-            let mut b = vec![0.0; n];
-            for k in k0..(k0 + block).min(m) {
-                for (c, w) in p.weights.iter().enumerate() {
-                    let r = resid[c][k];
-                    for (i, bi) in b.iter_mut().enumerate() {
-                        *bi += w * fit.jac[i][c][k] * r;
-                    }
-                }
-            }
-            b
-        })
-        .collect();
-    for _ in 0..o.bootstrap {
-        // Same sign for every channel of a block keeps the channels' coupling.
-        let mut b = vec![0.0; n];
-        for blk in &blocks {
-            let sign = if rng.next() & 1 == 0 { 1.0 } else { -1.0 };
-            for (bi, v) in b.iter_mut().zip(blk) {
-                *bi += sign * v;
-            }
-        }
-        if let Some(d) = solve_spd(&g, &b, 1e-12) {
-            draws.push(d);
-        }
-    }
+    // A parameter the run does not excite at all (reverse rates on a forward-only run)
+    // is undetermined: infinite σ, not the ridge's spurious zero.
+    let gmax = (0..n).map(|i| g[i * n + i]).fold(0.0f64, f64::max);
     (0..n)
         .map(|i| {
-            let mean = draws.iter().map(|d| d[i]).sum::<f64>() / draws.len().max(1) as f64;
-            (draws.iter().map(|d| (d[i] - mean).powi(2)).sum::<f64>() / (draws.len().max(2) - 1) as f64)
-                .sqrt()
+            if g[i * n + i] <= 1e-12 * gmax {
+                return f64::INFINITY;
+            }
+            let row: Vec<f64> = (0..n).map(|j| ginv_s[i * n + j]).collect();
+            let x = solve_spd(&g, &row, 1e-12).unwrap_or_else(|| vec![f64::NAN; n]);
+            x[i].max(0.0).sqrt()
         })
         .collect()
 }
@@ -499,7 +561,8 @@ pub fn diagnose(
     for ((m, s), c) in meas.iter().zip(&base64).zip(channels) {
         let r: Vec<f64> = m.iter().zip(s).map(|(a, b)| a - b).collect();
         let rms = (m.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
-        let h = ((0.025 / twin.dt_s()).round() as usize).max(5);
+        // 0.25 s: slower than a tachometer's counting window, faster than most model error.
+        let h = ((0.125 / twin.dt_s()).round() as usize).max(5);
         let sigma = noise_sigma(&r, h).max(1e-4 * rms).max(1e-9);
         noise.push((c.name(), sigma));
         weights.push(1.0 / (sigma * sigma));
@@ -681,30 +744,41 @@ pub fn diagnose(
             refit_list.push(i);
         }
     }
-    // Bootstrap blocks: three correlation lengths of the refit residual (what is left is
-    // mostly noise), at least 0.5 s.
-    let min_block = (0.5 / (twin.dt_s() * stride as f64)).ceil() as usize;
+    // Noise level window for the sandwich covariance: 1 s; correlations up to 2 s.
+    let level_win = ((1.0 / (twin.dt_s() * stride as f64)).round() as usize).max(3);
     let mut fits: Vec<(usize, Fit)> = Vec::new();
     for &ci in &refit_list {
         let ix = &groups[ci].1;
         let sp: Vec<&ParamSpec> = ix.iter().map(|&i| &specs[i]).collect();
         let start: Vec<f64> = cands[ci].params.iter().map(|f| f.value).collect();
         let Some(fit) = refit(twin, &p, o, &sp, &start) else { continue };
-        let resid: Vec<Vec<f64>> = p
-            .meas
-            .iter()
-            .zip(&fit.sim)
-            .map(|(mm, s)| p.idx.iter().map(|&t| mm[t] - f64::from(s[t])).collect())
-            .collect();
-        let block = (3 * correlation_length(&p, &resid)).max(min_block);
-        if std::env::var_os("SIMROD_DIAG_DEBUG").is_some() {
-            eprintln!(
-                "{}: bootstrap blocks of {block} samples ({} blocks)",
-                groups[ci].0,
-                p.idx.len() / block
-            );
+        let mut std = sandwich_std(&p, &fit, level_win, 2 * level_win);
+        // One parameter: the profile interval — values whose energy the data cannot tell
+        // from the minimum (3.84 for 95 %, scaled by the sandwich's inflation over the
+        // naive variance) — widens the interval where the objective is rugged.
+        if let ([sd], [s0]) = (std.as_mut_slice(), sp.as_slice()) {
+            let g: f64 = (0..p.weights.len())
+                .map(|c| p.weights[c] * fit.jac[0][c].iter().map(|j| j * j).sum::<f64>())
+                .sum();
+            let kappa = (*sd * *sd * g).max(1.0);
+            let inside: Vec<f64> = fit
+                .profile
+                .iter()
+                .filter(|(_, e)| *e - fit.energy <= 3.84 * kappa)
+                .map(|(v, _)| *v)
+                .collect();
+            if let (Some(a), Some(b)) = (inside.first(), inside.last()) {
+                let step = fit.profile.windows(2).map(|w| w[1].0 - w[0].0).fold(0.0, f64::max);
+                let half = 0.5 * (b - a) + step;
+                *sd = sd.max(half / 1.96).min(s0.upper - s0.lower);
+            }
         }
-        let std = bootstrap_std(&p, o, &fit, block);
+        // A parameter the model can only realise in steps (a delay in whole time steps)
+        // is uncertain by at least its quantisation.
+        for (sd, sp) in std.iter_mut().zip(&sp) {
+            let q = sp.quantum(twin.dt_s());
+            *sd = (*sd * *sd + q * q / 12.0).sqrt();
+        }
         let cand = &mut cands[ci];
         cand.confirmed_reduction = Some(((e0 - fit.energy) / excess).clamp(0.0, 1.0));
         cand.significant = false;
@@ -837,6 +911,29 @@ pub fn diagnose(
         format!("{} ({})", l.effect, params.join(", "))
     };
     let ratio_after = lead_ok.and_then(|l| after(l.effect)).map_or(excess_ratio, |f| f.energy / e_noise);
+    // An effect is judged on the channels it acts on: the share of their excess error it
+    // removes, and whether what it leaves there is noise. (A torque-sensor offset acts on
+    // one channel of thirteen; its share of the whole run's excess says little.)
+    let e0c = channel_energies(&p, &base);
+    let per_sample = p.idx.len() as f64;
+    let on_affected = |f: &Fit| -> (f64, f64) {
+        let e1c = channel_energies(&p, &f.sim);
+        let (mut removed, mut excess_a, mut left, mut k) = (0.0, 0.0, 0.0, 0.0);
+        for (a, b) in e0c.iter().zip(&e1c) {
+            if a - b > o.min_reduction_of_noise * per_sample {
+                removed += a - b;
+                excess_a += (a - per_sample).max(1e-3 * per_sample);
+                left += b;
+                k += 1.0;
+            }
+        }
+        if k == 0.0 {
+            (0.0, f64::INFINITY)
+        } else {
+            ((removed / excess_a).min(1.0), left / (k * per_sample))
+        }
+    };
+    let (red_a, after_a) = lead_ok.and_then(|l| after(l.effect)).map_or((0.0, f64::INFINITY), on_affected);
     let place = |loc: &Location| {
         format!(
             "{} ({:.0} % of the excess), worst at {:.1}–{:.1} s",
@@ -847,7 +944,7 @@ pub fn diagnose(
         )
     };
     let (kind, verdict, unexplained) = match lead_ok {
-        Some(l) if l.reduction() >= o.explain_fraction && ratio_after <= o.noise_like_ratio => {
+        Some(l) if red_a >= o.explain_fraction && after_a <= o.noise_like_ratio && ratio_after <= o.noise_like_ratio => {
             let group = confounded.first().map(|g| {
                 let sep =
                     g.separating_profile.as_ref().map(|(pr, cos)| format!("; run {pr} to separate them (cosine {cos:.2})"));
@@ -861,12 +958,26 @@ pub fn diagnose(
             (
                 VerdictKind::Missing,
                 format!(
-                    "missing effect: {}, removes {:.0} % of the error above noise and leaves a noise-like residual{}",
+                    "missing effect: {}, removes {:.0} % of the error above noise on the channels it acts on and leaves a noise-like residual{}",
                     describe(l),
-                    100.0 * l.reduction(),
+                    100.0 * red_a,
                     group.unwrap_or_default()
                 ),
                 None,
+            )
+        }
+        Some(l) if red_a >= o.explain_fraction && after_a <= o.noise_like_ratio => {
+            let loc = locate_rest(&after(l.effect).map_or_else(|| base.clone(), |f| f.sim.clone()));
+            (
+                VerdictKind::Partial,
+                format!(
+                    "missing effect: {} explains the error on the channels it acts on ({:.0} % there); more remains elsewhere ({:.1}x the noise): {}",
+                    describe(l),
+                    100.0 * red_a,
+                    ratio_after,
+                    place(&loc)
+                ),
+                Some(loc),
             )
         }
         _ if excess_ratio <= o.noise_like_ratio => (
@@ -904,7 +1015,22 @@ pub fn diagnose(
             )
         }
     };
-    Ok(Diagnosis { kind, verdict, excess_ratio, noise, ranking, selected, confounded, unexplained, proposed })
+    let lead = match kind {
+        VerdictKind::Missing | VerdictKind::Partial => lead_ok.map(|l| l.effect),
+        _ => None,
+    };
+    Ok(Diagnosis {
+        kind,
+        verdict,
+        excess_ratio,
+        noise,
+        lead,
+        ranking,
+        selected,
+        confounded,
+        unexplained,
+        proposed,
+    })
 }
 
 /// Among the built-in profiles the probe offers, the one where the members' simulated

@@ -24,6 +24,18 @@ pub struct ParamSpec {
     pub unit: &'static str,
 }
 
+impl ParamSpec {
+    /// The smallest step in which the model can realise the parameter, at time step `dt`
+    /// (0 where it is continuous).
+    pub fn quantum(&self, dt: f64) -> f64 {
+        if self.effect == "controller_delay" {
+            dt
+        } else {
+            0.0
+        }
+    }
+}
+
 /// `(neutral, delta, lower, upper, unit)` of a parameter; `None` for parameters not in
 /// the library. Neutral values of overrides come from the model's parameters.
 fn spec_numbers(effect: &str, param: &str, p: &Params) -> Option<(f64, f64, f64, f64, &'static str)> {

@@ -3,6 +3,7 @@
 pub mod engine;
 pub mod library;
 pub mod linalg;
+pub mod proof;
 pub mod twin;
 
 pub use engine::{diagnose, Diagnosis, Options, ProfileProbe, Twin, VerdictKind};

@@ -1,13 +1,15 @@
 //! `simrod compare --report DIR`: one self-contained `DIR/index.html` (inline CSS and
 //! SVG, no script, nothing fetched), one section per channel: measured vs simulated,
-//! the residual with the worst windows shaded, and the error budget.
+//! the residual with the worst windows shaded, and the error budget. With [`Extras`]:
+//! a before/after overlay for the channels a change of effects moved, and the error
+//! per iteration from the compare history.
 
 use std::fmt::Write as _;
 use std::io;
 use std::path::{Path, PathBuf};
 
-use super::svg::{budget_chart, esc, line_chart, Bar, Series};
-use super::{num, pct};
+use super::svg::{budget_chart, esc, history_chart, line_chart, Bar, Series};
+use super::{change_pct, num, pct};
 use crate::atomic::write_atomic;
 use crate::compare::budget::RegionKind;
 use crate::compare::residual::Verdict;
@@ -119,8 +121,176 @@ fn channel_section(o: &mut String, c: &ChannelResult, t: &[f64], worst: bool) {
     );
 }
 
+/// A channel's error must move by this share of its RMSE to count as changed (noise-only
+/// channels move by far less when an effect is added).
+pub const CHANGED_REL: f64 = 0.05;
+
+/// The same run simulated with other effects (the previous iteration's, or
+/// `--baseline-effects`): the "before" of the overlay.
+#[derive(Debug, Clone, Default)]
+pub struct Baseline {
+    /// Where the baseline's effects came from, for the heading.
+    pub origin: String,
+    /// The baseline's effects, one line.
+    pub before: String,
+    /// The current comparison's effects, one line.
+    pub after: String,
+    /// Per channel, in the comparison's order.
+    pub channels: Vec<BaselineChannel>,
+}
+
+/// One channel simulated with the baseline's effects.
+#[derive(Debug, Clone, Default)]
+pub struct BaselineChannel {
+    pub name: String,
+    pub sim: Vec<f64>,
+    /// `sim − meas`, NaN where left out.
+    pub residual: Vec<f64>,
+    pub rmse: f64,
+    pub nrmse: f64,
+}
+
+/// The compare history, for the error-per-iteration section.
+#[derive(Debug, Clone, Default)]
+pub struct HistoryView {
+    /// The file it was read from.
+    pub path: String,
+    /// Channel names, the columns.
+    pub channels: Vec<String>,
+    /// One row per iteration, oldest first.
+    pub rows: Vec<HistoryRow>,
+}
+
+/// One iteration.
+#[derive(Debug, Clone, Default)]
+pub struct HistoryRow {
+    pub timestamp: String,
+    pub effects: String,
+    /// NRMSE (0..1) per column.
+    pub nrmse: Vec<Option<f64>>,
+}
+
+/// What a report shows beyond the comparison itself.
+#[derive(Debug, Clone, Default)]
+pub struct Extras {
+    pub baseline: Option<Baseline>,
+    pub history: Option<HistoryView>,
+}
+
+/// Whether a channel's error moved between baseline and now (see [`CHANGED_REL`]).
+pub fn changed(before_rmse: f64, after_rmse: f64) -> bool {
+    before_rmse.is_finite()
+        && after_rmse.is_finite()
+        && (after_rmse - before_rmse).abs() > CHANGED_REL * before_rmse.max(after_rmse)
+}
+
+fn baseline_section(o: &mut String, r: &CompareResult, b: &Baseline) {
+    let _ = write!(
+        o,
+        "<h2 id=\"before-after\">Before / after</h2><p>Before: {} ({}).<br>After: {}.</p>",
+        esc(&b.before),
+        esc(&b.origin),
+        esc(&b.after)
+    );
+    o.push_str("<table><tr><th>channel</th><th>unit</th><th>RMSE before</th><th>RMSE after</th><th>NRMSE % before</th><th>NRMSE % after</th><th>change</th></tr>");
+    let mut moved = Vec::new();
+    for c in &r.channels {
+        let Some(bc) = b.channels.iter().find(|x| x.name == c.name) else { continue };
+        let ch = changed(bc.rmse, c.metrics.rmse);
+        if ch {
+            moved.push((c, bc));
+        }
+        let _ = write!(
+            o,
+            "<tr{}><td>{}</td><td>{}</td><td class=n>{}</td><td class=n>{}</td><td class=n>{}</td><td class=n>{}</td><td class=n>{}</td></tr>",
+            if ch { " class=\"worst\"" } else { "" },
+            esc(&c.name),
+            esc(&c.unit),
+            num(bc.rmse),
+            num(c.metrics.rmse),
+            num(100.0 * bc.nrmse),
+            num(100.0 * c.metrics.nrmse),
+            change_pct(bc.rmse, c.metrics.rmse)
+        );
+    }
+    o.push_str("</table>");
+    if moved.is_empty() {
+        let _ = write!(
+            o,
+            "<p class=\"note\">No channel's error moved by more than {:.0} %.</p>",
+            100.0 * CHANGED_REL
+        );
+        return;
+    }
+    let _ = write!(
+        o,
+        "<p class=\"note\">Highlighted: error moved by more than {:.0} %; overlays below.</p>",
+        100.0 * CHANGED_REL
+    );
+    for (c, bc) in moved {
+        o.push_str(&line_chart(
+            &format!("{}: measured, before, after", c.name),
+            &c.unit,
+            &r.time_s,
+            &[
+                Series { values: &c.meas, color: "#1f77b4", label: "measured" },
+                Series { values: &bc.sim, color: "#9e9e9e", label: "before" },
+                Series { values: &c.sim, color: "#ff7f0e", label: "after" },
+            ],
+            &[],
+            260.0,
+        ));
+        o.push_str(&line_chart(
+            &format!("{}: residual before and after", c.name),
+            &c.unit,
+            &r.time_s,
+            &[
+                Series { values: &bc.residual, color: "#9e9e9e", label: "before" },
+                Series { values: &c.residual, color: "#c0392b", label: "after" },
+            ],
+            &[],
+            200.0,
+        ));
+    }
+}
+
+fn history_section(o: &mut String, h: &HistoryView) {
+    let _ = write!(
+        o,
+        "<h2 id=\"history\">History</h2><p class=\"note\">{}: NRMSE % per iteration.</p>",
+        esc(&h.path)
+    );
+    o.push_str("<table><tr><th>#</th><th>time (UTC)</th>");
+    for c in &h.channels {
+        let _ = write!(o, "<th>{}</th>", esc(c));
+    }
+    o.push_str("<th>effects</th></tr>");
+    for (i, row) in h.rows.iter().enumerate() {
+        let _ = write!(o, "<tr><td class=n>{}</td><td>{}</td>", i + 1, esc(&row.timestamp));
+        for v in &row.nrmse {
+            let _ = write!(o, "<td class=n>{}</td>", v.map_or("-".into(), |v| num(100.0 * v)));
+        }
+        let _ = write!(o, "<td>{}</td></tr>", esc(&row.effects));
+    }
+    o.push_str("</table>");
+    let series: Vec<(String, Vec<Option<f64>>)> = h
+        .channels
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            (c.clone(), h.rows.iter().map(|r| r.nrmse.get(k).copied().flatten().map(|v| 100.0 * v)).collect())
+        })
+        .collect();
+    o.push_str(&history_chart("NRMSE per iteration", "NRMSE [%]", &series));
+}
+
 /// The report page.
 pub fn render(r: &CompareResult) -> String {
+    render_with(r, &Extras::default())
+}
+
+/// The report page with the before/after and history sections.
+pub fn render_with(r: &CompareResult, x: &Extras) -> String {
     let s = &r.setup;
     let mut o = String::with_capacity(1 << 20);
     let _ = write!(
@@ -189,6 +359,12 @@ pub fn render(r: &CompareResult) -> String {
         &[],
         220.0,
     ));
+    if let Some(b) = &x.baseline {
+        baseline_section(&mut o, r, b);
+    }
+    if let Some(h) = x.history.as_ref().filter(|h| !h.rows.is_empty()) {
+        history_section(&mut o, h);
+    }
     for c in &r.channels {
         channel_section(&mut o, c, &r.time_s, worst.as_deref() == Some(c.name.as_str()));
     }
@@ -198,9 +374,14 @@ pub fn render(r: &CompareResult) -> String {
 
 /// Write `dir/index.html` atomically, creating `dir` if needed; returns the file.
 pub fn write_report(dir: &Path, r: &CompareResult) -> io::Result<PathBuf> {
+    write_report_with(dir, r, &Extras::default())
+}
+
+/// [`write_report`] with the before/after and history sections.
+pub fn write_report_with(dir: &Path, r: &CompareResult, x: &Extras) -> io::Result<PathBuf> {
     std::fs::create_dir_all(dir)?;
     let path = dir.join("index.html");
-    let page = render(r);
+    let page = render_with(r, x);
     write_atomic(&path, |w| w.write_all(page.as_bytes()))?;
     Ok(path)
 }

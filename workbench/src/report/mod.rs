@@ -38,6 +38,20 @@ pub fn pct(v: f64) -> String {
     }
 }
 
+/// Relative change from `before` to `after` as a signed percentage (`-61 %`; `0 %` when it
+/// rounds to nothing, so no `-0 %`); `-` when there is no finite, positive `before`.
+pub fn change_pct(before: f64, after: f64) -> String {
+    if !(before > 0.0 && before.is_finite() && after.is_finite()) {
+        return "-".into();
+    }
+    let c = (100.0 * (after - before) / before).round();
+    if c == 0.0 {
+        "0 %".into()
+    } else {
+        format!("{c:+.0} %")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -51,5 +65,9 @@ mod tests {
         assert_eq!(num(1.5e-7), "1.500e-7");
         assert_eq!(num(f64::NAN), "-");
         assert_eq!(pct(0.724), "72 %");
+        assert_eq!(change_pct(2.0, 0.5), "-75 %");
+        assert_eq!(change_pct(2.0, 1.999), "0 %");
+        assert_eq!(change_pct(1.0, 1.2), "+20 %");
+        assert_eq!(change_pct(0.0, 1.0), "-");
     }
 }

@@ -295,6 +295,114 @@ pub fn budget_chart(title: &str, bars: &[Bar<'_>]) -> String {
     s
 }
 
+/// Line colours for charts with many series (colour-blind-safe order first).
+pub const PALETTE: [&str; 10] = [
+    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
+    "#17becf",
+];
+
+/// Error per iteration of the improve-the-model loop: one line with markers per series
+/// (`label`, value per iteration, `None` where not recorded), x = iteration 1..n, y on a
+/// log axis because a good effect cuts an error by factors, not by fixed amounts.
+pub fn history_chart(title: &str, y_label: &str, series: &[(String, Vec<Option<f64>>)]) -> String {
+    let n = series.iter().map(|(_, v)| v.len()).max().unwrap_or(0).max(1);
+    let legend_w = 170.0;
+    let h = 300.0;
+    let pw = W - ML - MR - legend_w;
+    let ph = h - MT - MB;
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in series.iter().flat_map(|(_, v)| v.iter().flatten()).filter(|v| v.is_finite() && **v > 0.0) {
+        lo = lo.min(*v);
+        hi = hi.max(*v);
+    }
+    if !lo.is_finite() {
+        (lo, hi) = (0.1, 1.0);
+    }
+    let (llo, mut lhi) = (lo.log10().floor(), hi.log10().ceil());
+    if lhi <= llo {
+        lhi = llo + 1.0;
+    }
+    let x_of = |i: usize| if n == 1 { ML + pw / 2.0 } else { ML + i as f64 / (n - 1) as f64 * pw };
+    let y_of = |v: f64| MT + (lhi - v.log10()) / (lhi - llo) * ph;
+    let mut s = String::new();
+    let _ = write!(
+        s,
+        r##"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {W} {h}" width="{W}" height="{h}" role="img" aria-label="{}"><rect x="{ML}" y="{MT}" width="{pw}" height="{ph}" fill="#fff" stroke="#999"/>"##,
+        esc(title)
+    );
+    // Decades, and 2 and 5 within them when the range is short.
+    let mults: &[f64] = if lhi - llo <= 2.0 { &[1.0, 2.0, 5.0] } else { &[1.0] };
+    let mut e = llo;
+    while e <= lhi {
+        for m in mults {
+            let v = m * 10f64.powf(e);
+            if v.log10() > lhi + 1e-9 {
+                continue;
+            }
+            let y = y_of(v);
+            let _ = write!(
+                s,
+                r##"<line x1="{ML}" x2="{:.1}" y1="{y:.1}" y2="{y:.1}" stroke="{}"/><text x="{:.1}" y="{:.1}" text-anchor="end" font-size="11">{}</text>"##,
+                ML + pw,
+                if *m == 1.0 { "#d0d0d0" } else { "#eeeeee" },
+                ML - 4.0,
+                y + 4.0,
+                tick_label(v)
+            );
+        }
+        e += 1.0;
+    }
+    let every = n.div_ceil(20).max(1);
+    for i in (0..n).step_by(every) {
+        let x = x_of(i);
+        let _ = write!(
+            s,
+            r##"<line x1="{x:.1}" x2="{x:.1}" y1="{MT}" y2="{:.1}" stroke="#eee"/><text x="{x:.1}" y="{:.1}" text-anchor="middle" font-size="11">{}</text>"##,
+            MT + ph,
+            MT + ph + 14.0,
+            i + 1
+        );
+    }
+    for (k, (label, v)) in series.iter().enumerate() {
+        let color = PALETTE[k % PALETTE.len()];
+        let pts: Vec<(f64, f64)> = v
+            .iter()
+            .enumerate()
+            .filter_map(|(i, y)| y.filter(|y| y.is_finite() && *y > 0.0).map(|y| (x_of(i), y_of(y))))
+            .collect();
+        let line: Vec<String> = pts.iter().map(|(x, y)| format!("{x:.1},{y:.1}")).collect();
+        let _ = write!(
+            s,
+            r#"<polyline fill="none" stroke="{color}" stroke-width="1.5" points="{}"/>"#,
+            line.join(" ")
+        );
+        for (x, y) in &pts {
+            let _ = write!(s, r#"<circle cx="{x:.1}" cy="{y:.1}" r="3" fill="{color}"/>"#);
+        }
+        let ly = MT + 8.0 + 16.0 * k as f64;
+        let lx = ML + pw + 12.0;
+        let _ = write!(
+            s,
+            r#"<line x1="{lx:.1}" x2="{:.1}" y1="{ly:.1}" y2="{ly:.1}" stroke="{color}" stroke-width="3"/><text x="{:.1}" y="{:.1}" font-size="11">{}</text>"#,
+            lx + 14.0,
+            lx + 18.0,
+            ly + 4.0,
+            esc(label)
+        );
+    }
+    let _ = write!(
+        s,
+        r#"<text x="{ML}" y="15" font-size="13" font-weight="bold">{}</text><text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="11">iteration</text><text x="14" y="{:.1}" font-size="11" transform="rotate(-90 14 {:.1})" text-anchor="middle">{} (log)</text></svg>"#,
+        esc(title),
+        ML + pw / 2.0,
+        h - 4.0,
+        MT + ph / 2.0,
+        MT + ph / 2.0,
+        esc(y_label)
+    );
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -337,5 +445,21 @@ mod tests {
         assert!(c.contains("a&lt;b") && !c.contains("NaN"));
         let b = budget_chart("t", &[Bar { label: "forward / steady", error: 0.7, samples: 0.2 }]);
         assert!(b.contains("70 % / 20 %"));
+    }
+
+    #[test]
+    fn history_chart_draws_every_point_on_a_log_axis() {
+        let series = vec![
+            ("I_DC".to_string(), vec![Some(1.4), Some(0.3), Some(0.29)]),
+            ("C_Kistler_L".to_string(), vec![Some(1.1), None, Some(f64::NAN)]),
+        ];
+        let c = history_chart("NRMSE per iteration", "NRMSE [%]", &series);
+        assert!(c.starts_with("<svg") && c.ends_with("</svg>"));
+        assert_eq!(c.matches("<circle").count(), 4);
+        assert!(c.contains(">I_DC<") && c.contains(">0.1<") && c.contains(">1<") && c.contains(">2<"));
+        assert!(!c.contains("NaN") && !c.contains("inf"));
+        // One iteration, no values: still well formed.
+        let c = history_chart("t", "y", &[("a".to_string(), vec![None])]);
+        assert!(c.ends_with("</svg>") && !c.contains("NaN"));
     }
 }

@@ -7,7 +7,7 @@ use std::path::Path;
 use model_core::{Channel, Simulation, MEASURED};
 
 use super::encoder::{windowed_rpm, Encoder};
-use super::noise::{Gauss, NoiseModel};
+use super::noise::{Gauss, Miscount, NoiseModel};
 use super::rng::Rng;
 use crate::measure::{Measurement, Signal, SETPOINT_LOAD_L, SETPOINT_LOAD_R, SETPOINT_THROTTLE};
 
@@ -78,6 +78,15 @@ pub fn file_value(v: f32) -> f64 {
 const STREAM_NOISE: u64 = 0;
 const STREAM_PHASE: u64 = 100;
 const STREAM_MISCOUNT: u64 = 200;
+const STREAM_JITTER: u64 = 300;
+
+/// Pulse channel names (thesis table 5.9): cumulative edge counts of the R flange's
+/// Kistler encoder and of the Siemens encoder behind the R coupling, and the latched
+/// time of each one's last edge. See [`pulse_channels`].
+pub const PULSE_KISTLER: &str = "inc:Kistler";
+pub const PULSE_SIEMENS: &str = "inc:SiemensEnc";
+pub const EDGE_TIME_KISTLER: &str = "tedge:Kistler";
+pub const EDGE_TIME_SIEMENS: &str = "tedge:SiemensEnc";
 
 /// Apply the chain; the result has time, `MEASURED` and the three set points.
 pub fn measure(rec: &Recorded, opts: &ChainOptions, source: &Path) -> Measurement {
@@ -115,6 +124,108 @@ pub fn measure(rec: &Recorded, opts: &ChainOptions, source: &Path) -> Measuremen
     }
 }
 
+/// Counts of one encoder over a run (`counts[0] = 0` at rest at t = 0, then one per
+/// sample), from the shaft speed `exact` [rpm] of the channel at `idx` in `MEASURED`.
+/// The start phase and the lost pulses come from that channel's own random streams, so
+/// the speed channel and its pulse channels see the same edges. `edge(k, fraction, count)`
+/// is told every counted edge: in sample interval `k`, at `fraction` of it.
+fn count_pulses(
+    exact: &[f32],
+    dt: f64,
+    ppr: u32,
+    seed: u64,
+    idx: u64,
+    miscount: Option<&Miscount>,
+    edge: &mut dyn FnMut(usize, f64, i64),
+) -> Vec<i64> {
+    let phase = Rng::new(seed, STREAM_PHASE + idx).uniform();
+    let mut lose = Rng::new(seed, STREAM_MISCOUNT + idx);
+    let mut lost = |rpm: f64| match miscount {
+        Some(m) => {
+            let p = m.drop_probability(rpm);
+            p > 0.0 && lose.uniform() < p
+        }
+        None => false,
+    };
+    let mut e = Encoder::new(ppr, phase);
+    let mut counts = Vec::with_capacity(exact.len() + 1);
+    counts.push(0);
+    let mut prev = 0.0; // the run starts at rest
+    for (k, v) in exact.iter().enumerate() {
+        let v = f64::from(*v);
+        counts.push(e.advance_edges(prev, v, dt, &mut lost, &mut |f, c| edge(k, f, c)));
+        prev = v;
+    }
+    counts
+}
+
+/// Pulse channels of the R shaft (`simrod bench --pulses`), as a DAQ counter/timer input
+/// exports them (thesis table 5.9): per encoder, the signed cumulative edge count at each
+/// sample ([`PULSE_KISTLER`], [`PULSE_SIEMENS`]; quadrature, so reverse counts down) and
+/// the time [s] of the last edge counted up to that sample, latched on the timer clock
+/// ([`EDGE_TIME_KISTLER`], [`EDGE_TIME_SIEMENS`]; 0 before the first edge). The counts are
+/// those behind `T_Kistler_R` and `SiemensEnc`, lost pulses included (`--miscount`).
+/// When two edges fall into one sample only the later one's time is kept, as a latch
+/// does. With `--noise none` the times are exact and nothing is lost.
+pub fn pulse_channels(rec: &Recorded, opts: &ChainOptions) -> Vec<Signal> {
+    let nm = opts.noise;
+    let enc = nm.map(|m| m.encoders).unwrap_or_default();
+    let n = rec.t_us.len();
+    let mut out = Vec::with_capacity(4);
+    let shafts = [
+        (Channel::TKistlerR, enc.kistler_ppr, false, PULSE_KISTLER, EDGE_TIME_KISTLER),
+        (Channel::SiemensEnc, enc.siemens_ppr, opts.miscount, PULSE_SIEMENS, EDGE_TIME_SIEMENS),
+    ];
+    for (c, ppr, miscount, count_name, time_name) in shafts {
+        let idx = MEASURED.iter().position(|m| *m == c).unwrap_or(0) as u64;
+        let exact = rec.get(c);
+        let lose = match (&nm, miscount) {
+            (Some(m), true) => Some(&m.miscount),
+            _ => None,
+        };
+        let mut jitter = Rng::new(opts.seed, STREAM_JITTER + idx);
+        let mut latched = vec![0.0f64; n];
+        let mut last = 0.0f64;
+        let mut at = |k: usize, frac: f64, _count: i64| {
+            let t1 = rec.t_us.get(k).map_or(0.0, |t| *t as f64 * 1e-6);
+            let t0 = t1 - rec.dt_s;
+            let mut t = t0 + frac * rec.dt_s;
+            if let Some(m) = &nm {
+                // Edge position noise, as a time shift at the interval's mean pulse rate.
+                let v0 = if k > 0 { exact.get(k - 1).map_or(0.0, |v| f64::from(*v)) } else { 0.0 };
+                let v1 = exact.get(k).map_or(0.0, |v| f64::from(*v));
+                let rate = (0.5 * (v0 + v1) / 60.0 * f64::from(ppr)).abs();
+                let shift = m.encoders.edge_jitter_deg / 360.0 * f64::from(ppr) * jitter.gauss();
+                if rate > 0.0 {
+                    t += shift / rate;
+                }
+                let clock = m.encoders.timer_s;
+                t = (t / clock).round() * clock;
+            }
+            last = t.max(t0).max(last).min(t1);
+            if let Some(slot) = latched.get_mut(k) {
+                *slot = last;
+            }
+        };
+        let counts = count_pulses(exact, rec.dt_s, ppr, opts.seed, idx, lose, &mut at);
+        // Carry the latch forward over samples without an edge.
+        let mut held = 0.0;
+        for (k, v) in latched.iter_mut().enumerate() {
+            if counts.get(k + 1) != counts.get(k) {
+                held = *v;
+            }
+            *v = held;
+        }
+        out.push(Signal {
+            name: count_name.to_owned(),
+            unit: "pulses".to_owned(),
+            values: counts.iter().skip(1).map(|c| *c as f64).collect(),
+        });
+        out.push(Signal { name: time_name.to_owned(), unit: "s".to_owned(), values: latched });
+    }
+    out
+}
+
 /// The noisy series of one measured channel (`idx` = its position in `MEASURED`).
 fn sensor(
     c: Channel,
@@ -131,21 +242,8 @@ fn sensor(
     };
     let enc = &nm.encoders;
     let encoder = |ppr: u32, miscount: bool| {
-        let phase = Rng::new(opts.seed, STREAM_PHASE + idx).uniform();
-        let mut lose = Rng::new(opts.seed, STREAM_MISCOUNT + idx);
-        let mut lost = |rpm: f64| {
-            let p = nm.miscount.drop_probability(rpm);
-            miscount && p > 0.0 && lose.uniform() < p
-        };
-        let mut e = Encoder::new(ppr, phase);
-        let mut counts = Vec::with_capacity(exact.len() + 1);
-        counts.push(0);
-        let mut prev = 0.0; // the run starts at rest
-        for v in exact {
-            let v = f64::from(*v);
-            counts.push(e.advance(prev, v, dt, &mut lost));
-            prev = v;
-        }
+        let lose = miscount.then_some(&nm.miscount);
+        let counts = count_pulses(exact, dt, ppr, opts.seed, idx, lose, &mut |_, _, _| {});
         let half = ((enc.window_s / (2.0 * dt)).round() as usize).max(1);
         windowed_rpm(&counts, ppr, dt, half)
     };

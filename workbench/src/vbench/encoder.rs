@@ -26,14 +26,36 @@ impl Encoder {
     /// Advance over one interval `dt` [s] in which the speed went from `rpm0` to `rpm1`;
     /// `lost(rpm)` says whether one edge at that speed is lost. Returns the count.
     pub fn advance(&mut self, rpm0: f64, rpm1: f64, dt: f64, lost: &mut dyn FnMut(f64) -> bool) -> i64 {
+        self.advance_edges(rpm0, rpm1, dt, lost, &mut |_, _| {})
+    }
+
+    /// [`Encoder::advance`], also reporting every counted edge as `edge(fraction, count)`:
+    /// where in the interval it fell (0..=1; the angle is taken as linear in time within
+    /// one sample, as the trapezoid rule makes it at the ends) and the count after it.
+    /// Edges and losses are drawn in the same order as `advance`, so both give the same
+    /// counts from the same random stream.
+    pub fn advance_edges(
+        &mut self,
+        rpm0: f64,
+        rpm1: f64,
+        dt: f64,
+        lost: &mut dyn FnMut(f64) -> bool,
+        edge: &mut dyn FnMut(f64, i64),
+    ) -> i64 {
         let next = self.pos + 0.5 * (rpm0 + rpm1) / 60.0 * dt * self.ppr;
-        let edges = next.floor() as i64 - self.pos.floor() as i64;
-        self.pos = next;
-        for _ in 0..edges.unsigned_abs() {
+        let base = self.pos.floor() as i64;
+        let edges = next.floor() as i64 - base;
+        let span = next - self.pos;
+        for e in 0..edges.unsigned_abs() {
+            // The level crossed: base + 1, base + 2, ... forward; base, base - 1, ... back.
+            let level = if edges > 0 { base + 1 + e as i64 } else { base - e as i64 };
             if !lost(rpm1) {
                 self.counted += edges.signum();
+                let frac = if span != 0.0 { ((level as f64 - self.pos) / span).clamp(0.0, 1.0) } else { 1.0 };
+                edge(frac, self.counted);
             }
         }
+        self.pos = next;
         self.counted
     }
 }

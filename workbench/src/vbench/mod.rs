@@ -14,6 +14,10 @@
 //! - speeds: pulse encoders counted in a 0.1 s window centred on each sample: Kistler
 //!   60 ppr (T_Kistler_L/R), SuT motor 64 ppr (assumed), Siemens 128 ppr (SiemensEnc),
 //!   which with `--miscount` loses up to 20 % of its pulses above 100 rpm (fig. 5.35/5.36);
+//! - with `--pulses`, the R shaft's pulse channels as a counter/timer input exports them
+//!   (thesis table 5.9): cumulative edge counts `inc:Kistler`, `inc:SiemensEnc` and the
+//!   latched time of the last edge `tedge:Kistler`, `tedge:SiemensEnc` [s] (1 µs clock,
+//!   0.02° edge jitter; [`chain::pulse_channels`]). Off by default: files stay as they were;
 //! - current probes: 0.5 A (Tektronix A622), 1 A (Fluke i1010), 0.1 A (Danisense), more
 //!   at the limits; voltages 0.02–0.05 V; throttle voltage 5 mV;
 //! - set points: exact (the PLC logs its own numbers).
@@ -88,6 +92,12 @@ pub struct BenchArgs {
     /// The Siemens encoder loses pulses at high speed (thesis fig. 5.35/5.36).
     #[arg(long)]
     pub miscount: bool,
+
+    /// Also export the R shaft's pulse channels (thesis table 5.9): `inc:Kistler`,
+    /// `inc:SiemensEnc` (cumulative edge counts) and `tedge:Kistler`, `tedge:SiemensEnc`
+    /// (time of the last edge) — what `simrod identify stiffness` needs.
+    #[arg(long)]
+    pub pulses: bool,
 }
 
 impl BenchArgs {
@@ -113,7 +123,11 @@ pub fn bench(args: &BenchArgs) -> Result<Measurement, CmdError> {
     let spec = args.run.spec()?;
     let chain = args.chain()?;
     let rec = Recorded::run(spec.simulation()?);
-    Ok(measure(&rec, &chain, &args.run.out))
+    let mut m = measure(&rec, &chain, &args.run.out);
+    if args.pulses {
+        m.signals.extend(chain::pulse_channels(&rec, &chain));
+    }
+    Ok(m)
 }
 
 /// `simrod bench`.

@@ -78,11 +78,23 @@ pub struct Encoders {
     pub sut_motor_ppr: u32,
     /// Siemens encoder behind the R coupling (SiemensEnc).
     pub siemens_ppr: u32,
+    /// [s] clock of the pulse timestamps (`simrod bench --pulses` only).
+    pub timer_s: f64,
+    /// [deg] standard deviation of where an edge sits on the shaft (disc pitch error and
+    /// trigger jitter, independent per edge; `--pulses` only).
+    pub edge_jitter_deg: f64,
 }
 
 impl Default for Encoders {
     fn default() -> Self {
-        Self { window_s: 0.1, kistler_ppr: 60, sut_motor_ppr: 64, siemens_ppr: 128 }
+        Self {
+            window_s: 0.1,
+            kistler_ppr: 60,
+            sut_motor_ppr: 64,
+            siemens_ppr: 128,
+            timer_s: 1e-6,
+            edge_jitter_deg: 0.02,
+        }
     }
 }
 
@@ -225,6 +237,12 @@ impl NoiseModel {
         }
         if [e.kistler_ppr, e.sut_motor_ppr, e.siemens_ppr].contains(&0) {
             return Err("encoders: pulses per revolution must be >= 1".into());
+        }
+        if !(e.timer_s.is_finite() && e.timer_s > 0.0 && e.timer_s <= 1e-3) {
+            return Err("encoders.timer_s: expected a clock period in (0, 1e-3] s".into());
+        }
+        if !(e.edge_jitter_deg.is_finite() && (0.0..=1.0).contains(&e.edge_jitter_deg)) {
+            return Err("encoders.edge_jitter_deg: expected 0 to 1 degree".into());
         }
         let mc = &self.miscount;
         if !pair([mc.threshold_rpm, mc.full_rpm]) {

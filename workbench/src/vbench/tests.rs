@@ -268,3 +268,64 @@ fn bad_arguments_are_usage_errors() {
     assert!(e.to_string().contains("nope.toml") && e.exit_code() == 2, "{e}");
     assert!(!out.exists());
 }
+
+#[test]
+fn pulse_channels_are_opt_in_and_match_the_speed_channels() {
+    use super::chain::{EDGE_TIME_KISTLER, EDGE_TIME_SIEMENS, PULSE_KISTLER, PULSE_SIEMENS};
+    use super::encoder::windowed_rpm;
+    let plain = bench(&args(&["--profile", "TP12", "--miscount", "-q", "--out", "x.csv"])).unwrap();
+    let with =
+        bench(&args(&["--profile", "TP12", "--miscount", "--pulses", "-q", "--out", "x.csv"])).unwrap();
+    // Off by default; on, the other channels are exactly as without.
+    assert!(plain.signal(PULSE_KISTLER).is_none());
+    assert_eq!(with.signals.len(), plain.signals.len() + 4);
+    assert_eq!(&with.signals[..plain.signals.len()], &plain.signals[..]);
+    let dt = 1e-3;
+    for (count, time, speed, ppr) in [
+        (PULSE_KISTLER, EDGE_TIME_KISTLER, Channel::TKistlerR, 60),
+        (PULSE_SIEMENS, EDGE_TIME_SIEMENS, Channel::SiemensEnc, 128),
+    ] {
+        let c = &with.signal(count).unwrap().values;
+        let t = &with.signal(time).unwrap().values;
+        assert_eq!(with.signal(time).unwrap().unit, "s");
+        // The counts are those behind the speed channel (lost pulses included).
+        let counts: Vec<i64> = std::iter::once(0).chain(c.iter().map(|v| *v as i64)).collect();
+        let rpm = windowed_rpm(&counts, ppr, dt, 50);
+        for (k, (a, b)) in rpm.iter().zip(series(&with, speed)).enumerate() {
+            assert_eq!((*a as f32).to_bits(), (*b as f32).to_bits(), "{count} vs {} at {k}", speed.name());
+        }
+        assert!(*c.last().unwrap() > 100.0);
+        // Each change of count has its edge time inside that sample, on the 1 µs clock.
+        let mut changes = 0;
+        for k in 1..c.len() {
+            if c[k] != c[k - 1] {
+                changes += 1;
+                let tk = with.time_s[k];
+                assert!(
+                    t[k] > tk - dt - 1e-12 && t[k] <= tk + 1e-12,
+                    "{time} at {k}: {} not in ({}, {tk}]",
+                    t[k],
+                    tk - dt
+                );
+                assert!(((t[k] * 1e6).round() - t[k] * 1e6).abs() < 1e-6, "{}", t[k]);
+            } else {
+                assert_eq!(t[k], t[k - 1], "{time} holds its last edge");
+            }
+        }
+        assert!(changes > 100);
+    }
+    // The miscounting Siemens encoder falls short of 128 pulses per 60 Kistler pulses at speed.
+    let kc = &with.signal(PULSE_KISTLER).unwrap().values;
+    let sc = &with.signal(PULSE_SIEMENS).unwrap().values;
+    let n = kc.len();
+    let ratio = (sc[n - 1] - sc[0]) / (kc[n - 1] - kc[0]);
+    assert!(ratio < 128.0 / 60.0 * 0.98, "{ratio}");
+}
+
+#[test]
+fn pulse_timing_keys_are_checked() {
+    let e = NoiseModel::parse(Path::new("n.toml"), "[encoders]\ntimer_s = 0\n").unwrap_err();
+    assert_eq!(e.to_string(), "n.toml: encoders.timer_s: expected a clock period in (0, 1e-3] s");
+    let e = NoiseModel::parse(Path::new("n.toml"), "[encoders]\nedge_jitter_deg = 5\n").unwrap_err();
+    assert!(e.to_string().contains("edge_jitter_deg"));
+}

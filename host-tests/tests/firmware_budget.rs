@@ -1,0 +1,85 @@
+//! CI guard of the firmware's real-time budget (generous limits, not a timing test):
+//!
+//! - worst instructions per `simrod_step` call over whole TP07, TP11 and TP14 runs on
+//!   the Cortex-M4F <= `rt::BUDGET_STEP_INSNS` (5,000), counted exactly by QEMU
+//!   (`-icount shift=7` through the SysTick, see `firmware/src/bin/simrod-cost.rs`;
+//!   calibration regions of known `nop` counts prove the counts exact, and every run's
+//!   outputs must hash to the host's bits);
+//! - the bench firmware's flash <= 64 KiB and RAM (`.data` + `.bss` + stack high-water
+//!   mark of a whole run) <= 16 KiB.
+//!
+//! The aims (worst <= 3,000 instructions, RAM <= 8 KiB, host >= 5 M steps/s) are
+//! reported by `cargo xtask bench-rt`, not enforced here. Reuses the other firmware
+//! tests' build (`target/firmware-tests/plain`).
+
+mod firmware_support;
+
+use firmware_support as fw;
+use host_tests::rt::{self, Summary};
+use model_core::Builtin;
+
+#[test]
+fn worst_step_cost_is_within_budget() {
+    let dir = fw::build_firmware("plain", None);
+    let cost =
+        rt::run_cost(&dir.join("simrod-cost"), &dir.join("budget-cost")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(cost.n_blocks, 0, "the plain build has no block profile");
+    for run in &cost.runs {
+        let name = run.profile.name();
+        let want = fw::host_sim(run.profile, model_core::RateSet::Identified, model_core::Effects::NONE)
+            .total_steps();
+        assert_eq!(run.steps.len() as u64, want, "{name}: steps measured");
+        let step = Summary::of(run.steps.iter().map(|s| s.step)).expect("steps");
+        let prof = Summary::of(run.steps.iter().map(|s| s.profile_at)).expect("steps");
+        let stack = run.steps.iter().map(|s| s.stack).max().unwrap_or(0);
+        eprintln!(
+            "{name}: simrod_step instructions min {} / median {} / p99 {} / max {}; \
+             profile_at max {}; step stack {stack} B",
+            step.min, step.median, step.p99, step.max, prof.max
+        );
+        assert!(
+            step.max <= rt::BUDGET_STEP_INSNS,
+            "{name}: worst step takes {} instructions, over the budget of {} (median {}, p99 {}); \
+             `cargo xtask bench-rt` shows which block grew",
+            step.max,
+            rt::BUDGET_STEP_INSNS,
+            step.median,
+            step.p99
+        );
+        // A step does the whole model: far from empty, whatever the optimiser does.
+        assert!(step.min > 500, "{name}: a step of {} instructions cannot be the whole model", step.min);
+        assert!(
+            stack > 64 && stack < cost.stack_window,
+            "{name}: step stack {stack} B outside (64, {}) B: the painted window is too small or unused",
+            cost.stack_window
+        );
+    }
+}
+
+#[test]
+fn firmware_fits_flash_and_ram_budget() {
+    let dir = fw::build_firmware("plain", None);
+    let elf = dir.join("firmware");
+    let f = rt::footprint(&elf).unwrap_or_else(|e| panic!("{e}"));
+    eprintln!("firmware sections: {f:?}");
+    assert!(
+        f.flash() <= rt::BUDGET_FLASH,
+        "firmware flash {} B > budget {} B ({f:?})",
+        f.flash(),
+        rt::BUDGET_FLASH
+    );
+    let stats = rt::run_loop(&elf, &dir.join("budget-loop"), Builtin::TP12, fw::STEP_US)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let stack = u64::from(stats.get("stack_bytes"));
+    assert!(stack > 1024, "stack high-water {stack} B: painting broken? {stats}");
+    let ram = f.static_ram() + stack;
+    eprintln!(
+        "firmware: flash {} B (budget {}), RAM {ram} B = static {} + stack {stack} (budget {})",
+        f.flash(),
+        rt::BUDGET_FLASH,
+        f.static_ram(),
+        rt::BUDGET_RAM
+    );
+    assert!(ram <= rt::BUDGET_RAM, "firmware RAM {ram} B > budget {} B: {stats}", rt::BUDGET_RAM);
+    assert_eq!(stats.get("overruns"), 0, "{stats}");
+}

@@ -1,0 +1,608 @@
+//! `simrod diagnose MEAS`: which physical effect does the model lack in this measured
+//! run? The statistics are in [`crate::diagnose::engine`]; this module turns a
+//! measurement file into the engine's inputs and its answer into a report, JSON or an
+//! effect file.
+//!
+//! The twin runs on the file's recorded set points through [`crate::compare::align`]
+//! (the same alignment as `simrod compare`: model step = sample interval, or a 1 ms
+//! resampling), so a diagnosis and a comparison of the same file see the same model.
+//!
+//! Gaps: the engine fits every sample, so an interpolated stretch would be fitted as if
+//! it had been measured. Files with gaps are refused (the reader's own check; there is
+//! no `--allow-gaps` here), as is a file whose `gap` column flags samples or whose
+//! fitted channels hold non-finite values: cut the run at the gap instead.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use clap::Args;
+use model_core::effects::DELAY_CAPACITY;
+use model_core::{Config, Effects, Inputs, Params, SetPoints};
+use serde_json::{json, Map, Value};
+
+use crate::compare::{align, CompareOptions, InputSource};
+use crate::diagnose::twin::{fitted_channels, BuiltinProbe, RecordedTwin};
+use crate::diagnose::{self, Diagnosis, Options, VerdictKind};
+use crate::effects_file::{format_effects, load_effects, summarize_effects, write_effects};
+use crate::error::CmdError;
+use crate::measure::{self, LoadOptions, Mapping, GAP_CHANNEL};
+use crate::report::{change_pct, num, pct};
+use crate::simulate::{parse_supply_v, CouplingArg, RatesArg, SpeedTargetArg};
+
+/// Fewest fitted channels a diagnosis runs on: with fewer, most effects look alike.
+pub const MIN_CHANNELS: usize = 4;
+
+/// Candidates listed in the terminal ranking (the JSON has all of them).
+const SHOWN: usize = 8;
+
+const HOW: &str = "\
+How the diagnosis works:
+  The twin runs on the file's recorded set points (as in `simrod compare`). Each channel's
+  noise level is estimated from the fast part of its residual, so every channel is weighted
+  by 1/noise^2. Every parameter of every effect in the library gets a sensitivity run; each
+  effect is scored by how much of the error above noise its parameters remove (linear
+  prediction), the leaders are refitted on the simulator (confirmed), and their parameters'
+  95 % intervals come from a block bootstrap of the residual. Effects whose predicted
+  residual shapes coincide are reported as confounded, with the built-in profile that best
+  separates them.
+  Verdicts: missing (one effect explains the error and leaves noise), partial, unexplained,
+  nothing_missing (the residual is already noise-like).
+  Speed channels: the bench counts encoder pulses in a window centred on each sample
+  (--speed-window-s, 0.1 s on the SimRod bench; 0 when the speeds are not window-counted),
+  and the twin's speeds are averaged over the same window before they are compared.
+  Files with gaps are refused: cut the run at the gap.";
+
+/// Arguments of `simrod diagnose`.
+#[derive(Debug, Clone, Args)]
+#[command(after_long_help = HOW)]
+pub struct DiagnoseArgs {
+    /// Measured run with set points: .csv (also .txt, .tsv) or .mat, as `simrod bench`
+    /// writes them.
+    #[arg(value_name = "MEAS")]
+    pub meas: PathBuf,
+
+    /// Effects already in the model (TOML); the diagnosis looks for what is missing on
+    /// top of them.
+    #[arg(long, value_name = "CURRENT.toml")]
+    pub effects: Option<PathBuf>,
+
+    /// Print the diagnosis as JSON on stdout instead of the report.
+    #[arg(long)]
+    pub json: bool,
+
+    /// Write the current effects plus the effect found to this effect file (atomically).
+    /// Nothing is written when the verdict proposes nothing.
+    #[arg(long, value_name = "OUT.toml")]
+    pub write_effects: Option<PathBuf>,
+
+    /// Curtis rate parameters of the twin: programmed (table 5.16) or identified (5.17).
+    #[arg(long, value_enum, default_value_t = RatesArg::Identified)]
+    pub params: RatesArg,
+
+    /// Target speed from the identified map, or from the Max Speed parameter.
+    #[arg(long, value_enum, default_value_t = SpeedTargetArg::Map)]
+    pub speed_target: SpeedTargetArg,
+
+    /// Coupling stiffness: identified (4369 N m/rad) or datasheet (10310 N m/rad).
+    #[arg(long, value_enum, default_value_t = CouplingArg::Identified)]
+    pub coupling: CouplingArg,
+
+    /// DPU voltage set point [V] (12..=30).
+    #[arg(long, value_name = "V", default_value_t = 24.0, value_parser = parse_supply_v)]
+    pub supply_v: f32,
+
+    /// Mapping file (TOML) renaming/scaling the file's channels to bench names.
+    #[arg(long, value_name = "FILE")]
+    pub mapping: Option<PathBuf>,
+
+    /// [s] the bench's speed-counting window (encoder pulses counted over this window,
+    /// centred on each sample); the twin's speeds get the same average. 0: none.
+    #[arg(long, value_name = "S", default_value_t = 0.1, value_parser = parse_speed_window)]
+    pub speed_window_s: f64,
+
+    /// Worker threads for the simulations (default: the machine's cores, at most 8).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=256))]
+    pub threads: Option<u32>,
+
+    /// Seed of the bootstrap (the same seed gives the same intervals).
+    #[arg(long, value_name = "N", default_value_t = 0x5eed)]
+    pub seed: u64,
+}
+
+/// `--speed-window-s` value: 0 (off) up to 5 s.
+pub fn parse_speed_window(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && (0.0..=5.0).contains(&v) => Ok(v),
+        _ => Err("expected a window in seconds, 0 (off) to 5".into()),
+    }
+}
+
+/// How the diagnosis was set up, for the report.
+#[derive(Debug, Clone)]
+pub struct DiagSetup {
+    pub source: String,
+    pub samples: usize,
+    pub duration_s: f64,
+    pub dt_us: u32,
+    pub step_note: String,
+    /// Channels fitted, in the engine's order.
+    pub channels: Vec<&'static str>,
+    /// Fitted channels the file lacks.
+    pub missing: Vec<&'static str>,
+    /// The current effects (`--effects`).
+    pub base: Effects,
+    pub effects_path: Option<PathBuf>,
+    pub speed_window_s: f64,
+    pub notes: Vec<String>,
+}
+
+/// A finished diagnosis.
+#[derive(Debug, Clone)]
+pub struct Diagnosed {
+    pub setup: DiagSetup,
+    pub diagnosis: Diagnosis,
+    /// [s] wall time: loading and aligning, the engine.
+    pub timing: (f64, f64),
+}
+
+impl Diagnosed {
+    /// The effects to write, or why there are none: only a `missing` or `partial`
+    /// verdict proposes (an effect fitted to a noise-like or unexplained residual would be
+    /// a guess).
+    pub fn proposal(&self) -> Result<Effects, String> {
+        let d = &self.diagnosis;
+        match d.kind {
+            VerdictKind::Missing | VerdictKind::Partial if d.proposed != self.setup.base => Ok(d.proposed),
+            VerdictKind::NothingMissing => Err("nothing is missing, so nothing is proposed".into()),
+            VerdictKind::Unexplained => {
+                Err("no library effect explains the residual, so nothing is proposed".into())
+            }
+            _ => Err("the diagnosis proposes no change to the current effects".into()),
+        }
+    }
+
+    /// The effect the verdict adds (the leading candidate when something is proposed).
+    pub fn leader(&self) -> Option<&diagnose::engine::Candidate> {
+        self.diagnosis.ranking.first()
+    }
+}
+
+/// Load, align and diagnose; writes nothing.
+pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
+    let t0 = Instant::now();
+    let base = match &args.effects {
+        Some(p) => load_effects(p)?,
+        None => Effects::NONE,
+    };
+    if let Some(out) = &args.write_effects {
+        check_out_path(out)?;
+    }
+    let load_opts = LoadOptions {
+        mapping: args.mapping.as_deref().map(Mapping::load).transpose()?,
+        ..LoadOptions::default()
+    };
+    let loaded = measure::load_with(&args.meas, &load_opts)?;
+    let meas = &loaded.measurement;
+    let src = args.meas.display().to_string();
+    if meas.gap_mask().iter().any(|g| *g) {
+        return Err(CmdError::Usage(format!(
+            "{src}: the run has samples flagged in its `{GAP_CHANNEL}` column; diagnose fits every sample, so cut the run at the gap"
+        )));
+    }
+    let opts = CompareOptions {
+        effects: base,
+        rates: args.params.into(),
+        speed_target: args.speed_target.into(),
+        coupling: args.coupling.into(),
+        supply_v: args.supply_v,
+        inputs: InputSource::Recorded,
+        ..CompareOptions::default()
+    };
+    let al = align::align(meas, &opts).map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
+    check_delay(&base, al.dt_us).map_err(|m| {
+        CmdError::Usage(format!("{}: {m}", args.effects.as_deref().unwrap_or(Path::new("")).display()))
+    })?;
+
+    // Measured channels, [channel][sample], in fitted order.
+    let mut channels = Vec::new();
+    let mut series = Vec::new();
+    let mut missing = Vec::new();
+    for c in fitted_channels() {
+        match al.channels.iter().find(|p| !p.derived && p.name == c.name()) {
+            Some(p) => {
+                if let Some(k) = p.meas.iter().position(|v| !v.is_finite()) {
+                    return Err(CmdError::Usage(format!(
+                        "{src}: {} is not a finite number at t = {:.6} s; diagnose needs every sample",
+                        c.name(),
+                        al.time_s.get(k).copied().unwrap_or(f64::NAN)
+                    )));
+                }
+                channels.push(c);
+                series.push(p.meas.clone());
+            }
+            None => missing.push(c.name()),
+        }
+    }
+    if channels.len() < MIN_CHANNELS {
+        return Err(CmdError::Usage(format!(
+            "{src}: diagnose needs at least {MIN_CHANNELS} of the measured channels; the file lacks {}",
+            missing.join(", ")
+        )));
+    }
+
+    let params = Params::thesis(opts.rates, opts.coupling);
+    let config = Config { dt_us: al.dt_us, params, speed_target: opts.speed_target, effects: base };
+    let inputs: Vec<Inputs> = (0..al.time_s.len())
+        .map(|k| {
+            let at = |v: &Vec<f64>| v.get(k).copied().unwrap_or(0.0) as f32;
+            Inputs {
+                sp: SetPoints {
+                    throttle_pct: at(&al.inputs[0]),
+                    load_pct: [at(&al.inputs[1]), at(&al.inputs[2])],
+                },
+                supply_v: args.supply_v,
+            }
+        })
+        .collect();
+    let twin =
+        RecordedTwin { config, inputs, channels: channels.clone(), speed_window_s: args.speed_window_s };
+    // The separating experiments are bench runs: at the bench's 1 kHz, whatever this file's rate.
+    let probe =
+        BuiltinProbe::standard(Config { dt_us: 1000, ..config }, channels.clone(), args.speed_window_s);
+    let mut o = Options { base, params, seed: args.seed, ..Options::default() };
+    if let Some(t) = args.threads {
+        o.threads = t as usize;
+    }
+    let t1 = Instant::now();
+    let diagnosis = diagnose::diagnose(&twin, &series, &o, Some(&probe))
+        .map_err(|e| CmdError::Runtime(format!("{src}: diagnosis failed: {e}")))?;
+    let t2 = Instant::now();
+
+    let mut notes = loaded.notes.clone();
+    notes.push(al.step_note.clone());
+    if !missing.is_empty() {
+        notes.push(format!("not in the file (not fitted): {}", missing.join(", ")));
+    }
+    Ok(Diagnosed {
+        setup: DiagSetup {
+            source: src,
+            samples: al.time_s.len(),
+            duration_s: al.time_s.last().copied().unwrap_or(0.0) - al.time_s.first().copied().unwrap_or(0.0),
+            dt_us: al.dt_us,
+            step_note: al.step_note,
+            channels: channels.iter().map(|c| c.name()).collect(),
+            missing,
+            base,
+            effects_path: args.effects.clone(),
+            speed_window_s: args.speed_window_s,
+            notes,
+        },
+        diagnosis,
+        timing: (t1.duration_since(t0).as_secs_f64(), t2.duration_since(t1).as_secs_f64()),
+    })
+}
+
+/// The controller delay lives in a fixed buffer; refuse a current delay the model would cap.
+fn check_delay(fx: &Effects, dt_us: u32) -> Result<(), String> {
+    let dt_s = f64::from(dt_us) * 1e-6;
+    if f64::from(fx.controller_delay_s) > DELAY_CAPACITY as f64 * dt_s {
+        return Err(format!(
+            "controller_delay.delay_s = {} s is longer than the model holds at a {dt_us} µs step ({} s)",
+            fx.controller_delay_s,
+            DELAY_CAPACITY as f64 * dt_s
+        ));
+    }
+    Ok(())
+}
+
+/// The output's directory must exist and the output must not be a directory: checked
+/// before the (long) diagnosis, so a typo costs nothing.
+fn check_out_path(out: &Path) -> Result<(), CmdError> {
+    let bad = |m: &str| Err(CmdError::Usage(format!("--write-effects {}: {m}", out.display())));
+    if out.file_name().is_none() || out.is_dir() {
+        return bad("expected a file name");
+    }
+    let dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return bad(&format!("directory {} does not exist", dir.display()));
+    }
+    Ok(())
+}
+
+/// Parameters as `name = value ± half the 95 % interval, unit` (no unit for ratios).
+pub fn params_text(c: &diagnose::engine::Candidate) -> String {
+    c.params
+        .iter()
+        .map(|p| {
+            let pm = if p.std.is_finite() { format!(" ± {}", num(1.96 * p.std)) } else { String::new() };
+            let unit = if p.unit == "-" { String::new() } else { format!(" {}", p.unit) };
+            format!("{} = {}{pm}{unit}", p.name, num(p.value))
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Columns padded to their widest cell; `left` columns left-aligned.
+fn columns(rows: &[Vec<String>], left: &[usize]) -> String {
+    let ncol = rows.iter().map(Vec::len).max().unwrap_or(0);
+    let widths: Vec<usize> = (0..ncol)
+        .map(|c| rows.iter().filter_map(|r| r.get(c)).map(|s| s.chars().count()).max().unwrap_or(0))
+        .collect();
+    let mut out = String::new();
+    for r in rows {
+        let mut line = String::from("  ");
+        for (c, (cell, w)) in r.iter().zip(&widths).enumerate() {
+            if c > 0 {
+                line.push_str("  ");
+            }
+            if left.contains(&c) {
+                line.push_str(&format!("{cell:<w$}"));
+            } else {
+                line.push_str(&format!("{cell:>w$}"));
+            }
+        }
+        out.push_str(line.trim_end());
+        out.push('\n');
+    }
+    out
+}
+
+/// The terminal report: the verdict first, then the evidence.
+pub fn render(d: &Diagnosed) -> String {
+    let s = &d.setup;
+    let g = &d.diagnosis;
+    let mut o = String::new();
+    o.push_str(&format!("simrod diagnose: {}\n", s.source));
+    o.push_str(&format!(
+        "  {} samples, {:.3} s, model step {} µs; {} channels fitted; speed window {} s\n",
+        s.samples,
+        s.duration_s,
+        s.dt_us,
+        s.channels.len(),
+        s.speed_window_s
+    ));
+    o.push_str(&format!(
+        "  current effects{}: {}\n",
+        s.effects_path.as_ref().map_or(String::new(), |p| format!(" ({})", p.display())),
+        summarize_effects(&s.base)
+    ));
+    for n in &s.notes {
+        o.push_str(&format!("  note: {n}\n"));
+    }
+    o.push_str(&format!(
+        "  residual energy {:.2}x what the estimated noise alone gives (1 = nothing left to explain)\n\n",
+        g.excess_ratio
+    ));
+    o.push_str(&format!("VERDICT ({}): {}\n\n", kind_name(&g.kind), g.verdict));
+
+    o.push_str("Ranking (share of the error above noise each effect removes; confirmed = refitted on the simulator):\n");
+    let mut rows = vec![vec![
+        "effect".to_string(),
+        "predicted".into(),
+        "confirmed".into(),
+        "significant".into(),
+        "parameters (± 95 %)".into(),
+    ]];
+    for c in g.ranking.iter().take(SHOWN) {
+        rows.push(vec![
+            c.effect.to_string(),
+            pct(c.predicted_reduction),
+            c.confirmed_reduction.map_or("-".into(), pct),
+            if c.significant { "yes" } else { "no" }.into(),
+            params_text(c),
+        ]);
+    }
+    o.push_str(&columns(&rows, &[0, 3, 4]));
+    if g.ranking.len() > SHOWN {
+        o.push_str(&format!(
+            "  ({} more effects remove less; all of them in --json)\n",
+            g.ranking.len() - SHOWN
+        ));
+    }
+    if !g.selected.is_empty() {
+        let sel: Vec<String> = g.selected.iter().map(|(e, r)| format!("{e} {}", pct(*r))).collect();
+        o.push_str(&format!("  greedy selection (incremental share): {}\n", sel.join(", then ")));
+    }
+    o.push('\n');
+
+    if let Some(l) = d.leader() {
+        o.push_str(&format!("Per channel with {} (RMSE; noise σ estimated from the residual):\n", l.effect));
+        let mut rows = vec![vec![
+            "channel".to_string(),
+            "noise σ".into(),
+            "before".into(),
+            "predicted".into(),
+            "confirmed".into(),
+            "change".into(),
+        ]];
+        for ch in &l.channels {
+            let sigma = g.noise.iter().find(|(n, _)| *n == ch.channel).map_or(f64::NAN, |(_, v)| *v);
+            let after = ch.rmse_confirmed.unwrap_or(ch.rmse_predicted);
+            let change = change_pct(ch.rmse_before, after);
+            rows.push(vec![
+                ch.channel.to_string(),
+                num(sigma),
+                num(ch.rmse_before),
+                num(ch.rmse_predicted),
+                ch.rmse_confirmed.map_or("-".into(), num),
+                change,
+            ]);
+        }
+        o.push_str(&columns(&rows, &[0]));
+        o.push('\n');
+    }
+
+    for grp in &g.confounded {
+        o.push_str(&format!(
+            "CONFOUNDED on this run: {} (cosine {:.2}: their residual shapes nearly coincide)\n",
+            grp.effects.join(", "),
+            grp.cosine
+        ));
+        match &grp.separating_profile {
+            Some((p, cos)) => o.push_str(&format!(
+                "  to separate them, measure: simrod bench --profile {p} (cosine there {cos:.2})\n"
+            )),
+            None => o.push_str("  no built-in profile separates them\n"),
+        }
+    }
+    if let Some(loc) = &g.unexplained {
+        o.push_str(&format!(
+            "UNEXPLAINED: {} holds {} of the excess error, worst at {:.1}–{:.1} s\n",
+            loc.channel,
+            pct(loc.share),
+            loc.window_s.0,
+            loc.window_s.1
+        ));
+    }
+    o.push_str(&format!(
+        "\ndiagnose took {:.2} s (load and align {:.2} s, engine {:.2} s)\n",
+        d.timing.0 + d.timing.1,
+        d.timing.0,
+        d.timing.1
+    ));
+    o
+}
+
+fn kind_name(k: &VerdictKind) -> &'static str {
+    match k {
+        VerdictKind::Missing => "missing",
+        VerdictKind::NothingMissing => "nothing_missing",
+        VerdictKind::Partial => "partial",
+        VerdictKind::Unexplained => "unexplained",
+    }
+}
+
+/// `{"source", "kind", "verdict", "excess_ratio", "ranking": [{"effect", "params":
+/// {name: value}, "uncertainty": {name: std}, "ci95": {name: [lo, hi]}, "units",
+/// "error_reduction", "predicted_reduction", "confirmed_reduction", "significant",
+/// "channels": [...]}], "selected", "confounded", "unexplained", "noise": {channel: σ},
+/// "proposed_effects": TOML text or null, "setup", "timing_s"}`. NaN becomes null.
+pub fn to_json(d: &Diagnosed) -> Value {
+    let g = &d.diagnosis;
+    let s = &d.setup;
+    let obj = |it: Vec<(String, Value)>| Value::Object(it.into_iter().collect::<Map<String, Value>>());
+    let ranking: Vec<Value> = g
+        .ranking
+        .iter()
+        .map(|c| {
+            json!({
+                "effect": c.effect,
+                "params": obj(c.params.iter().map(|p| (p.name.to_string(), json!(p.value))).collect()),
+                "uncertainty": obj(c.params.iter().map(|p| (p.name.to_string(), json!(p.std))).collect()),
+                "ci95": obj(c.params.iter().map(|p| (p.name.to_string(), json!([p.ci95.0, p.ci95.1]))).collect()),
+                "start": obj(c.params.iter().map(|p| (p.name.to_string(), json!(p.start))).collect()),
+                "units": obj(c.params.iter().map(|p| (p.name.to_string(), json!(p.unit))).collect()),
+                "error_reduction": c.reduction(),
+                "predicted_reduction": c.predicted_reduction,
+                "confirmed_reduction": c.confirmed_reduction,
+                "significant": c.significant,
+                "channels": c.channels,
+            })
+        })
+        .collect();
+    json!({
+        "source": s.source,
+        "kind": kind_name(&g.kind),
+        "verdict": g.verdict,
+        "excess_ratio": g.excess_ratio,
+        "ranking": ranking,
+        "selected": g.selected.iter().map(|(e, r)| json!({"effect": e, "incremental_reduction": r})).collect::<Vec<_>>(),
+        "confounded": g.confounded,
+        "unexplained": g.unexplained,
+        "noise": obj(g.noise.iter().map(|(n, v)| (n.to_string(), json!(v))).collect()),
+        "proposed_effects": d.proposal().ok().and_then(|fx| format_effects(&fx).ok()),
+        "setup": {
+            "samples": s.samples,
+            "duration_s": s.duration_s,
+            "dt_us": s.dt_us,
+            "step_note": s.step_note,
+            "channels": s.channels,
+            "missing_channels": s.missing,
+            "current_effects": summarize_effects(&s.base),
+            "effects_file": s.effects_path.as_ref().map(|p| p.display().to_string()),
+            "speed_window_s": s.speed_window_s,
+            "notes": s.notes,
+        },
+        "timing_s": {"load_align": d.timing.0, "engine": d.timing.1},
+    })
+}
+
+/// Write the proposal to `out`; `Ok(Err(why))` when nothing is proposed.
+pub fn write_proposal(d: &Diagnosed, out: &Path) -> Result<Result<(), String>, CmdError> {
+    match d.proposal() {
+        Ok(fx) => {
+            write_effects(&fx, out).map_err(|e| CmdError::Runtime(e.to_string()))?;
+            Ok(Ok(()))
+        }
+        Err(why) => Ok(Err(why)),
+    }
+}
+
+/// `simrod diagnose`.
+pub fn execute(args: &DiagnoseArgs) -> Result<(), CmdError> {
+    let d = run(args)?;
+    // Write first, report after: the report says what happened to the file, and a failed
+    // write still shows the diagnosis before the error.
+    let written = args.write_effects.as_deref().map(|p| (p, write_proposal(&d, p)));
+    let mut text = if args.json {
+        let mut v = to_json(&d);
+        if let (Some((p, Ok(Ok(())))), Some(m)) = (&written, v.as_object_mut()) {
+            m.insert("effects_written".into(), json!(p.display().to_string()));
+        }
+        let mut s = serde_json::to_string_pretty(&v).map_err(|e| CmdError::Runtime(format!("JSON: {e}")))?;
+        s.push('\n');
+        s
+    } else {
+        render(&d)
+    };
+    let mut result = Ok(());
+    if let Some((p, w)) = written {
+        let msg = match w {
+            Ok(Ok(())) => format!("wrote {} ({})", p.display(), summarize_effects(&d.diagnosis.proposed)),
+            Ok(Err(why)) => format!("{} not written: {why}", p.display()),
+            Err(e) => {
+                result = Err(e);
+                String::new()
+            }
+        };
+        if !msg.is_empty() {
+            if args.json {
+                eprintln!("{msg}"); // keep stdout pure JSON
+            } else {
+                text.push_str(&msg);
+                text.push('\n');
+            }
+        }
+    }
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .map_err(|e| CmdError::Runtime(format!("stdout: {e}")))?;
+    result
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn speed_window_is_checked() {
+        assert_eq!(parse_speed_window("0.1"), Ok(0.1));
+        assert_eq!(parse_speed_window("0"), Ok(0.0));
+        assert!(parse_speed_window("-0.1").is_err());
+        assert!(parse_speed_window("NaN").is_err());
+        assert!(parse_speed_window("6").is_err());
+    }
+
+    #[test]
+    fn long_delays_are_refused() {
+        let mut fx = Effects::NONE;
+        fx.controller_delay_s = 0.05;
+        assert!(check_delay(&fx, 1000).is_ok());
+        assert!(check_delay(&fx, 100).unwrap_err().contains("100 µs"));
+    }
+}
