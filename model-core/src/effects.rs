@@ -92,8 +92,9 @@ pub struct Effects {
     pub connector_drift: ConnectorDrift,
 }
 
-/// Longest controller delay in steps (1.6 KiB of state): 0.4 s at 1 ms, 40 ms at 100 µs.
-pub const DELAY_CAPACITY: usize = 400;
+/// Longest controller delay in steps (1 KiB of state): 0.256 s at 1 ms, 25.6 ms at 100 µs,
+/// well beyond the lag the thesis saw (6.1); sized so the firmware fits in 8 KiB of RAM.
+pub const DELAY_CAPACITY: usize = 256;
 
 /// Every effect id, as used in effect files.
 pub const EFFECT_IDS: &[&str] = &[

@@ -471,9 +471,9 @@ mod tests {
     #[test]
     fn long_delays_are_refused_not_capped() {
         let mut fx = Effects::NONE;
-        fx.controller_delay_s = 0.4;
+        fx.controller_delay_s = 0.25;
         assert!(check_delay(&fx, 1000).is_ok());
-        assert!(check_delay(&fx, 100).unwrap_err().contains("at most 400 steps"));
+        assert!(check_delay(&fx, 100).unwrap_err().contains("at most 256 steps"));
     }
 
     #[test]

@@ -448,7 +448,7 @@ pub fn identify_rates(runs: &[&Measurement], opts: &RatesOptions<'_>) -> Result<
             fit.support[1],
             base.accel_ls_s,
             format!("{n_full} full + {n_part} partial acceleration transients"),
-            "no full or partial acceleration transients",
+            "no usable full or partial acceleration transients (see Left out)",
         ));
         out.estimates.push(rate_est(
             &key("low_accel", "s"),
@@ -457,7 +457,7 @@ pub fn identify_rates(runs: &[&Measurement], opts: &RatesOptions<'_>) -> Result<
             fit.support[0],
             base.low_accel_s,
             format!("{n_low} low + {n_part} partial acceleration transients (blend weights from the mapped throttle)"),
-            "no low or partial acceleration transients",
+            "no usable low or partial acceleration transients (see Left out)",
         ));
         out.estimates.push(rate_est(
             &key("neutral_decel_hs", "s"),
@@ -475,7 +475,7 @@ pub fn identify_rates(runs: &[&Measurement], opts: &RatesOptions<'_>) -> Result<
             fit.support[3],
             base.neutral_decel_ls_s,
             format!("{n_neu} neutral deceleration transients"),
-            "no neutral deceleration transients",
+            "no usable neutral deceleration transients (see Left out)",
         ));
         out.estimates.push(rate_est(
             &key("partial_decel", "s"),
@@ -484,7 +484,7 @@ pub fn identify_rates(runs: &[&Measurement], opts: &RatesOptions<'_>) -> Result<
             fit.support[5],
             base.partial_decel_s,
             format!("{n_pd} partial deceleration transients"),
-            "no partial deceleration transients",
+            "no usable partial deceleration transients (see Left out)",
         ));
         let f_txt = f_stat.map_or("-".to_owned(), |f| format!("{f:.1}"));
         out.estimates.push(match knee_ls {

@@ -246,8 +246,9 @@ fn inertias_are_recovered_from_transients() {
         ));
     }
     let o = inertia_of(&runs);
+    // The SuT's share of the power also carries the load inertias' errors: 5 %.
     for (key, truth) in TRUE_INERTIAS {
-        assert_within(&o, key, f64::from(*truth), 3.0, 0.03);
+        assert_within(&o, key, f64::from(*truth), 3.0, if *key == "sut_inertia" { 0.05 } else { 0.03 });
     }
     // Accelerations and decelerations both contribute (they weigh η oppositely).
     let sut = o.get("sut_inertia").unwrap();
@@ -371,4 +372,30 @@ fn stiffness_needs_pulse_channels_and_torque_variation() {
     let runs = [bench_run(stiff_truth(), Effects::NONE, steady, 4, false, true, "steady.csv")];
     let o = stiffness_of(&runs);
     assert_undetermined(&o, "coupling_stiffness_identified");
+}
+
+#[test]
+fn the_dispatch_writes_a_data_directory_with_the_identified_value() {
+    use crate::datadir::ModelData;
+    use crate::identify::progress::Progress;
+    use crate::identify::run::Run;
+    use crate::identify::{identify, Context, What};
+    let m = bench_run(stiff_truth(), Effects::NONE, stiffness_profile(45.0), 71, false, true, "stiff45.csv");
+    let runs = [Run::new("stiff45.csv", m).unwrap()];
+    let base = ModelData::builtin().unwrap();
+    let bar = Progress::hidden();
+    let id = identify(What::Stiffness, &Context::new(&runs, &base, &bar)).unwrap();
+    assert_eq!(id.changed, vec!["coupling_stiffness_identified".to_string()]);
+    let k = f64::from(id.data.param("coupling_stiffness_identified").unwrap());
+    assert!((k - TRUE_STIFFNESS).abs() < 100.0, "{k}");
+    let frag = id.report.plots.iter().find(|p| p.file == "identified.toml").expect("fragment written");
+    assert!(frag.svg.contains("coupling_stiffness_identified = "));
+    assert!(id.report.plots.iter().any(|p| p.file == "stiffness_twist.svg"));
+    assert!(id.report.md.contains("miscount-free segments"));
+    // Written out, the data directory loads again with the new value.
+    let dir = tempfile::tempdir().unwrap();
+    id.write(dir.path()).unwrap();
+    let back = ModelData::load(dir.path()).unwrap();
+    assert_eq!(back.param("coupling_stiffness_identified"), id.data.param("coupling_stiffness_identified"));
+    assert!(dir.path().join("identified.toml").is_file() && dir.path().join("report.md").is_file());
 }
