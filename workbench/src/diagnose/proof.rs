@@ -143,7 +143,10 @@ pub fn judge(run: &Run, base: &Effects, truth: &Effects, truth_id: &str, d: &Dia
             let hidden = hidden_params.contains(&fp.name);
             let zi = (fp.value - t) / fp.std;
             z.push((zi, hidden));
-            let ok = fp.std.is_finite() && zi.abs() <= if hidden { 2.576 } else { 3.29 };
+            // An undetermined parameter (σ = ∞: the run does not excite it) claims
+            // nothing and cannot miss; the hidden parameter must be determined.
+            let ok =
+                if fp.std.is_infinite() { !hidden } else { zi.abs() <= if hidden { 2.576 } else { 3.29 } };
             detail.push_str(&format!(
                 "{}={:.5}±{:.5} (truth {:.5}{}) ",
                 fp.name,
