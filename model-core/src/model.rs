@@ -465,26 +465,27 @@ impl<'a> Model<'a> {
             *pl = regen(lim.update(m, p.load_power_rate_w_per_s * dt));
         }
         let v_s = inp.supply_v;
-        let mut v_b = v_s;
-        let mut sol = (0.0f32, 0.0f32, 0.0f32);
-        let mut i_ld = [0.0f32; 2];
         let r_conn = if self.drift_weight > 0.0 {
             self.r_conn * (1.0 + fx.connector_drift.alpha_per_k * self.conn_dtemp)
         } else {
             self.r_conn
         };
-        let passes = if fx.supply_resistance > 0.0 { 6 } else { 1 };
-        for _ in 0..passes {
-            sol = connector(p_sut, v_b, r_conn);
-            i_ld = if v_b > 0.0 { [p_ld[0] / v_b, p_ld[1] / v_b] } else { [0.0, 0.0] };
-            let i_sum = sol.0 + i_ld[0] + i_ld[1];
-            v_b = v_s - fx.supply_resistance * i_sum;
+        // Currents drawn at busbar voltage `v`: the SuT through the connector, the loads
+        // directly.
+        let draw = |v: f32| {
+            let i_ld = if v > 0.0 { [p_ld[0] / v, p_ld[1] / v] } else { [0.0, 0.0] };
+            (connector(p_sut, v, r_conn), i_ld)
+        };
+        let mut v_b = v_s;
+        if fx.supply_resistance > 0.0 {
+            // The busbars sag with the total current: a fixed number of fixed-point passes
+            // (same bits everywhere), then all currents at the converged voltage.
+            for _ in 0..6 {
+                let (sol, i_ld) = draw(v_b);
+                v_b = v_s - fx.supply_resistance * (sol.0 + i_ld[0] + i_ld[1]);
+            }
         }
-        if passes > 1 {
-            // Final pass at the converged busbar voltage, so all currents share one V.
-            sol = connector(p_sut, v_b, r_conn);
-            i_ld = if v_b > 0.0 { [p_ld[0] / v_b, p_ld[1] / v_b] } else { [0.0, 0.0] };
-        }
+        let (sol, i_ld) = draw(v_b);
         let (i_dc, v_dc, _) = sol;
         if self.drift_weight > 0.0 {
             let heat = fx.connector_drift.k_per_w * i_dc * i_dc * r_conn;

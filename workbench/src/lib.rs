@@ -17,6 +17,7 @@ pub mod error;
 pub mod history;
 pub mod identify;
 pub mod iterate;
+pub mod linalg;
 pub mod measure;
 pub mod profile_file;
 pub mod report;

@@ -253,7 +253,7 @@ fn invalid_arguments_are_refused_with_specific_messages() {
         (&["--profile", "TP07", "--effects", "missing.toml"], &["--effects missing.toml: cannot read"]),
         (
             &["--profile", "TP07", "--effects", "long_delay.toml", "--dt-us", "1000"],
-            &["long_delay.toml: controller_delay.delay_s = 0.5 s is 500 steps", "at most 400 steps"],
+            &["long_delay.toml: controller_delay.delay_s = 0.5 s is 500 steps", "at most 256 steps"],
         ),
     ];
     for (args, expected) in cases {

@@ -5,6 +5,8 @@
 //! the data do not determine at the prior mean instead of blowing up; comparing a
 //! parameter's posterior and prior deviation then tells whether the data determined it.
 
+use crate::linalg::{chol_inverse, chol_solve, cholesky};
+
 /// A row of the design: `(parameter index, coefficient)` pairs, the observation and its
 /// standard deviation.
 #[derive(Debug, Clone, PartialEq)]
@@ -37,68 +39,6 @@ impl Fit {
     pub fn residual(&self, r: &Row) -> f64 {
         r.y - r.coef.iter().map(|(i, c)| c * self.x.get(*i).copied().unwrap_or(0.0)).sum::<f64>()
     }
-}
-
-/// Cholesky factor `L` (row-major, lower) of an SPD matrix, or `None` if not SPD.
-pub fn cholesky(g: &[f64], n: usize) -> Option<Vec<f64>> {
-    if g.len() != n * n {
-        return None;
-    }
-    let mut l = vec![0.0; n * n];
-    for i in 0..n {
-        for j in 0..=i {
-            let mut s = g[i * n + j];
-            for k in 0..j {
-                s -= l[i * n + k] * l[j * n + k];
-            }
-            if i == j {
-                // A pivot lost to rounding means a direction the data do not determine.
-                if !(s > 1e-13 * g[i * n + i].abs()) || !s.is_finite() {
-                    return None;
-                }
-                l[i * n + i] = s.sqrt();
-            } else {
-                l[i * n + j] = s / l[j * n + j];
-            }
-        }
-    }
-    Some(l)
-}
-
-/// Solve `L L' x = b`.
-pub fn chol_solve(l: &[f64], n: usize, b: &[f64]) -> Vec<f64> {
-    let mut y = vec![0.0; n];
-    for i in 0..n {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= l[i * n + k] * y[k];
-        }
-        y[i] = s / l[i * n + i];
-    }
-    let mut x = vec![0.0; n];
-    for i in (0..n).rev() {
-        let mut s = y[i];
-        for k in i + 1..n {
-            s -= l[k * n + i] * x[k];
-        }
-        x[i] = s / l[i * n + i];
-    }
-    x
-}
-
-/// `(L L')^-1`.
-pub fn chol_inverse(l: &[f64], n: usize) -> Vec<f64> {
-    let mut inv = vec![0.0; n * n];
-    let mut e = vec![0.0; n];
-    for j in 0..n {
-        e.iter_mut().for_each(|v| *v = 0.0);
-        e[j] = 1.0;
-        let col = chol_solve(l, n, &e);
-        for i in 0..n {
-            inv[i * n + j] = col[i];
-        }
-    }
-    inv
 }
 
 /// Weighted least squares over `n` parameters; `prior`: per parameter `(mean, sd)`
