@@ -18,10 +18,10 @@ use std::time::Instant;
 
 use clap::Args;
 use model_core::effects::DELAY_CAPACITY;
-use model_core::{Config, Effects, Inputs, Params, SetPoints};
+use model_core::{Config, Effects, Inputs, Maps, Params, SetPoints};
 use serde_json::{json, Map, Value};
 
-use crate::compare::{align, CompareOptions, InputSource};
+use crate::compare::{align, regions, CompareOptions, InputSource};
 use crate::diagnose::twin::{fitted_channels, BuiltinProbe, RecordedTwin};
 use crate::diagnose::{self, Diagnosis, Options, VerdictKind};
 use crate::effects_file::{format_effects, load_effects, summarize_effects, write_effects};
@@ -250,7 +250,24 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
     // The separating experiments are bench runs: at the bench's 1 kHz, whatever this file's rate.
     let probe =
         BuiltinProbe::standard(Config { dt_us: 1000, ..config }, channels.clone(), args.speed_window_s);
-    let mut o = Options { base, params, seed: args.seed, ..Options::default() };
+    // Operating regions as `simrod compare` classifies them (from the measured and
+    // commanded signals), for the error each candidate removes per region.
+    let classes = regions::classify(
+        &al,
+        &regions::RegionRules::default(),
+        &regions::Limits::of(&params, &Maps::builtin()),
+    );
+    let mut region_masks: Vec<(String, Vec<bool>)> = (0..regions::N_COMBINED)
+        .map(|i| {
+            (
+                regions::combined_name(i),
+                classes.classes.iter().map(|c| c.combined() == i).collect::<Vec<bool>>(),
+            )
+        })
+        .filter(|(_, m)| m.iter().filter(|x| **x).count() * 100 >= m.len())
+        .collect();
+    region_masks.push(("at a limit".into(), classes.classes.iter().map(|c| c.limits != 0).collect()));
+    let mut o = Options { base, params, seed: args.seed, regions: region_masks, ..Options::default() };
     if let Some(t) = args.threads {
         o.threads = t as usize;
     }
@@ -434,6 +451,32 @@ pub fn render(d: &Diagnosed) -> String {
         }
         o.push_str(&columns(&rows, &[0]));
         o.push('\n');
+        if !l.regions.is_empty() {
+            o.push_str(&format!(
+                "Per operating region with {} (weighted mean squared error, 1.0 = noise), worst first:\n",
+                l.effect
+            ));
+            let mut regs: Vec<_> = l.regions.iter().filter(|r| r.samples > 0.0).collect();
+            regs.sort_by(|a, b| (b.before * b.samples).total_cmp(&(a.before * a.samples)));
+            let mut rows = vec![vec![
+                "region".to_string(),
+                "samples".into(),
+                "before".into(),
+                "predicted".into(),
+                "confirmed".into(),
+            ]];
+            for r in regs.iter().take(6) {
+                rows.push(vec![
+                    r.region.clone(),
+                    pct(r.samples),
+                    num(r.before),
+                    num(r.predicted),
+                    r.confirmed.map_or("-".into(), num),
+                ]);
+            }
+            o.push_str(&columns(&rows, &[0]));
+            o.push('\n');
+        }
     }
 
     for grp in &g.confounded {
@@ -501,6 +544,7 @@ pub fn to_json(d: &Diagnosed) -> Value {
                 "confirmed_reduction": c.confirmed_reduction,
                 "significant": c.significant,
                 "channels": c.channels,
+                "regions": c.regions,
             })
         })
         .collect();

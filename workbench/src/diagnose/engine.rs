@@ -74,6 +74,9 @@ pub struct Options {
     pub unexplained_fraction: f64,
     /// Cosine above which two candidates' predicted residuals are called confounded.
     pub confounded_cosine: f64,
+    /// Operating regions, `(name, mask over the samples)`, for the per-region error each
+    /// candidate removes (e.g. from `compare::regions`); empty for none.
+    pub regions: Vec<(String, Vec<bool>)>,
 }
 
 impl Default for Options {
@@ -92,6 +95,7 @@ impl Default for Options {
             explain_fraction: 0.6,
             unexplained_fraction: 0.3,
             confounded_cosine: 0.9,
+            regions: Vec::new(),
         }
     }
 }
@@ -126,6 +130,22 @@ pub struct ChannelChange {
     pub rmse_confirmed: Option<f64>,
 }
 
+/// Error in one operating region before and after adding an effect, as weighted mean
+/// squared error over the region's samples and channels (1.0 = the noise level).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RegionChange {
+    /// Region name.
+    pub region: String,
+    /// Share of the samples in the region.
+    pub samples: f64,
+    /// With the current model.
+    pub before: f64,
+    /// Predicted by the linear fit.
+    pub predicted: f64,
+    /// After the refit, on the simulator (if refitted).
+    pub confirmed: Option<f64>,
+}
+
 /// One candidate effect.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Candidate {
@@ -141,6 +161,8 @@ pub struct Candidate {
     pub significant: bool,
     /// Per-channel errors.
     pub channels: Vec<ChannelChange>,
+    /// Per-region errors (when regions were given).
+    pub regions: Vec<RegionChange>,
 }
 
 impl Candidate {
@@ -282,6 +304,41 @@ fn energy(p: &Prepared, sim: &[Vec<f32>]) -> f64 {
         }
     }
     e
+}
+
+/// Per region: weighted mean squared error of the current model (`before`) and of the
+/// model changed by `delta(channel, fit sample)` (`predicted`).
+fn region_errors(
+    p: &Prepared,
+    regions: &[(String, Vec<bool>)],
+    delta: impl Fn(usize, usize) -> f64,
+) -> Vec<RegionChange> {
+    let m = p.idx.len().max(1) as f64;
+    regions
+        .iter()
+        .map(|(name, mask)| {
+            let (mut before, mut after, mut count) = (0.0, 0.0, 0usize);
+            for (k, &t) in p.idx.iter().enumerate() {
+                if !mask.get(t).copied().unwrap_or(false) {
+                    continue;
+                }
+                count += 1;
+                for (c, w) in p.weights.iter().enumerate() {
+                    let r = p.meas[c][t] - p.base[c][t];
+                    before += w * r * r;
+                    after += w * (r - delta(c, k)).powi(2);
+                }
+            }
+            let per = (count * p.weights.len()).max(1) as f64;
+            RegionChange {
+                region: name.clone(),
+                samples: count as f64 / m,
+                before: before / per,
+                predicted: after / per,
+                confirmed: None,
+            }
+        })
+        .collect()
 }
 
 /// Weighted squared error per channel.
@@ -701,6 +758,9 @@ pub fn diagnose(
             confirmed_reduction: None,
             significant: false,
             channels: chans,
+            regions: region_errors(&p, &o.regions, |c, k| {
+                ix.iter().zip(&th).map(|(&i, t)| sens[i][c][k] * t).sum::<f64>()
+            }),
         });
         lin.push(th);
     }
@@ -793,6 +853,11 @@ pub fn diagnose(
         for (c, ch) in cand.channels.iter_mut().enumerate() {
             let s: Vec<f64> = fit.sim[c].iter().map(|v| f64::from(*v)).collect();
             ch.rmse_confirmed = Some(rmse(&p.meas[c], &s, &p.idx));
+        }
+        let confirmed =
+            region_errors(&p, &o.regions, |c, k| f64::from(fit.sim[c][p.idx[k]]) - p.base[c][p.idx[k]]);
+        for (rc, conf) in cand.regions.iter_mut().zip(confirmed) {
+            rc.confirmed = Some(conf.predicted);
         }
         fits.push((ci, fit));
     }
