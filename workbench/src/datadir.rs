@@ -17,7 +17,6 @@
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
-use model_core::profile::MAX_SETS;
 use model_core::table::{Table1, Table2};
 use model_core::{CouplingStiffness, Maps, Params, ProfileSet, RateSet, SetMode};
 
@@ -77,44 +76,7 @@ const BUILTIN_PROFILES: [(&str, &str); 5] = [
     ("TP14", include_str!("../../model-core/data/profiles/TP14.csv")),
 ];
 
-/// A 1-D map: grid `x`, values `y`, and the text around them.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Map1 {
-    /// Comment lines before the header (each starting with `#`).
-    pub comments: Vec<String>,
-    /// The header line, e.g. `mapped_throttle [%],speed [rpm]`.
-    pub header: String,
-    pub x: Vec<f32>,
-    pub y: Vec<f32>,
-}
-
-/// A 2-D map: column grid `x` (throttle set point), row grid `y` (load set point),
-/// values row-major `z[iy * nx + ix]`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Map2 {
-    pub comments: Vec<String>,
-    /// First header field, e.g. `load_sp\throttle_sp`.
-    pub corner: String,
-    pub x: Vec<f32>,
-    pub y: Vec<f32>,
-    pub z: Vec<f32>,
-}
-
-impl Map2 {
-    /// Value at row `iy`, column `ix`.
-    pub fn at(&self, ix: usize, iy: usize) -> f32 {
-        self.z.get(iy * self.x.len() + ix).copied().unwrap_or(f32::NAN)
-    }
-}
-
-/// One line of `parameters.toml`: kept verbatim unless a value is replaced.
-#[derive(Debug, Clone, PartialEq)]
-pub enum ParamLine {
-    /// Comment or blank line.
-    Text(String),
-    /// `key = value  # comment`.
-    Entry { key: String, value: f32, comment: String },
-}
+pub use model_data::{Map1, Map2, ParamLine};
 
 /// A profile file: its sets and its text (written back unchanged).
 #[derive(Debug, Clone, PartialEq)]
@@ -143,107 +105,23 @@ pub struct ModelData {
     pub profiles: Vec<ProfileData>,
 }
 
-/// Non-comment, non-empty lines with their 1-based numbers, and the leading comments.
-fn data_lines(text: &str) -> (Vec<String>, Vec<(usize, String)>) {
-    let mut comments = Vec::new();
-    let mut lines = Vec::new();
-    for (i, l) in text.lines().enumerate() {
-        let t = l.trim();
-        if t.is_empty() || t.starts_with('#') {
-            if lines.is_empty() && t.starts_with('#') {
-                comments.push(t.to_string());
-            }
-            continue;
-        }
-        lines.push((i + 1, t.to_string()));
+/// A shared-parser error, placed in `path`.
+fn at(path: &Path, e: model_data::Error) -> FileError {
+    if e.line == 0 {
+        FileError::whole(path, e.msg)
+    } else {
+        FileError::at(path, e.line, 1, e.msg)
     }
-    (comments, lines)
-}
-
-fn num(path: &Path, line: usize, field: &str, what: &str) -> Result<f32, FileError> {
-    match field.trim().parse::<f32>() {
-        Ok(v) if v.is_finite() => Ok(v),
-        _ => Err(FileError::at(
-            path,
-            line,
-            1,
-            format!("{what}: expected a finite number, found `{}`", field.trim()),
-        )),
-    }
-}
-
-fn check_increasing(path: &Path, lines: &[usize], xs: &[f32], what: &str) -> Result<(), FileError> {
-    let first = lines.first().copied().unwrap_or(0);
-    if xs.len() < 2 {
-        return Err(FileError::at(path, first, 1, format!("{what}: need at least 2 grid points")));
-    }
-    for (i, w) in xs.windows(2).enumerate() {
-        if w[1] <= w[0] {
-            let line = lines.get(i + 1).copied().unwrap_or(first);
-            return Err(FileError::at(
-                path,
-                line,
-                1,
-                format!("{what}: grid must be strictly increasing ({} then {})", w[0], w[1]),
-            ));
-        }
-    }
-    Ok(())
-}
-
-fn empty(path: &Path) -> FileError {
-    FileError::whole(path, "empty file (expected a header line and data rows)")
 }
 
 /// Parse a 1-D map (`x,y` rows under a header).
 pub fn parse_map1(path: &Path, text: &str) -> Result<Map1, FileError> {
-    let (comments, lines) = data_lines(text);
-    let Some((_, header)) = lines.first().cloned() else {
-        return Err(empty(path));
-    };
-    let (mut xs, mut ys, mut at) = (Vec::new(), Vec::new(), Vec::new());
-    for (ln, l) in lines.iter().skip(1) {
-        let f: Vec<&str> = l.split(',').collect();
-        if f.len() != 2 {
-            return Err(FileError::at(path, *ln, 1, format!("expected 2 columns (x,y), found {}", f.len())));
-        }
-        xs.push(num(path, *ln, f[0], "x")?);
-        ys.push(num(path, *ln, f[1], "y")?);
-        at.push(*ln);
-    }
-    check_increasing(path, &at, &xs, "x column")?;
-    Ok(Map1 { comments, header, x: xs, y: ys })
+    model_data::parse_map1(text).map_err(|e| at(path, e))
 }
 
 /// Parse a 2-D map (header `corner,x1,x2,...`, rows `y,z1,z2,...`).
 pub fn parse_map2(path: &Path, text: &str) -> Result<Map2, FileError> {
-    let (comments, lines) = data_lines(text);
-    let Some((hl, header)) = lines.first().cloned() else {
-        return Err(empty(path));
-    };
-    let mut hf = header.split(',');
-    let corner = hf.next().unwrap_or("").trim().to_string();
-    let xs = hf.map(|f| num(path, hl, f, "column grid")).collect::<Result<Vec<f32>, _>>()?;
-    check_increasing(path, &[hl], &xs, "column grid (throttle set point)")?;
-    let (mut ys, mut zs, mut at) = (Vec::new(), Vec::new(), Vec::new());
-    for (ln, l) in lines.iter().skip(1) {
-        let f: Vec<&str> = l.split(',').collect();
-        if f.len() != xs.len() + 1 {
-            return Err(FileError::at(
-                path,
-                *ln,
-                1,
-                format!("expected {} columns, found {}", xs.len() + 1, f.len()),
-            ));
-        }
-        ys.push(num(path, *ln, f[0], "row grid")?);
-        for v in &f[1..] {
-            zs.push(num(path, *ln, v, "value")?);
-        }
-        at.push(*ln);
-    }
-    check_increasing(path, &at, &ys, "row grid (load set point)")?;
-    Ok(Map2 { comments, corner, x: xs, y: ys, z: zs })
+    model_data::parse_map2(text).map_err(|e| at(path, e))
 }
 
 /// The keys `Params::set` accepts (tried on a scratch value).
@@ -252,86 +130,29 @@ fn known_key(key: &str) -> bool {
     p.set(key, 1.0, RateSet::Identified, CouplingStiffness::Identified).is_ok()
 }
 
-/// Parse `parameters.toml` (`name = number  # comment` lines).
+/// Parse `parameters.toml` (`name = number  # comment` lines); unknown keys are errors.
 pub fn parse_params(path: &Path, text: &str) -> Result<Vec<ParamLine>, FileError> {
-    let mut out = Vec::new();
-    let mut seen: Vec<String> = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let ln = i + 1;
-        let (body, comment) = match raw.split_once('#') {
-            Some((b, c)) => (b.trim(), format!("#{c}")),
-            None => (raw.trim(), String::new()),
-        };
-        if body.is_empty() {
-            out.push(ParamLine::Text(raw.to_string()));
-            continue;
-        }
-        let Some((k, v)) = body.split_once('=') else {
-            return Err(FileError::at(path, ln, 1, "expected `name = number`"));
-        };
-        let key = k.trim();
-        if key.is_empty() || !key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '.') {
-            return Err(FileError::at(path, ln, 1, format!("bad parameter name `{key}`")));
-        }
-        if !known_key(key) {
-            return Err(FileError::at(
-                path,
-                ln,
-                1,
-                format!("unknown parameter `{key}` (the model reads no such key)"),
-            ));
-        }
-        let norm = key.replace('.', "_").to_ascii_uppercase();
-        if seen.contains(&norm) {
-            return Err(FileError::at(path, ln, 1, format!("parameter `{key}` given twice")));
-        }
-        seen.push(norm);
-        let value = num(path, ln, v, key)?;
-        out.push(ParamLine::Entry { key: key.to_string(), value, comment });
-    }
-    Ok(out)
+    model_data::parse_params(text, &known_key).map_err(|e| at(path, e))
 }
 
 /// Parse a profile file (header, then `duration_s,throttle,load_l,load_r,mode,mode`).
 pub fn parse_profile(path: &Path, name: &str, text: &str) -> Result<ProfileData, FileError> {
-    let (_, lines) = data_lines(text);
-    let mut sets = Vec::new();
-    for (ln, l) in lines.iter().skip(1) {
-        let f: Vec<&str> = l.split(',').map(str::trim).collect();
-        if f.len() != 6 {
-            return Err(FileError::at(path, *ln, 1, format!("expected 6 columns, found {}", f.len())));
-        }
-        let dur = num(path, *ln, f[0], "duration_s")?;
-        if dur <= 0.0 {
-            return Err(FileError::at(path, *ln, 1, "duration_s must be > 0"));
-        }
-        let mut sp = [0.0f32; 3];
-        for (i, s) in sp.iter_mut().enumerate() {
-            *s = num(path, *ln, f[i + 1], "set point")?;
-            if !(-100.0..=100.0).contains(s) {
-                return Err(FileError::at(path, *ln, 1, "set points must lie in [-100, 100] %"));
-            }
-        }
-        let mode = |m: &str| match m {
-            "hold" => Ok(SetMode::Hold),
-            "interp" => Ok(SetMode::Interpolate),
-            _ => Err(FileError::at(path, *ln, 1, format!("mode must be `hold` or `interp`, found `{m}`"))),
-        };
-        sets.push(ProfileSet {
-            duration_s: dur,
-            throttle_pct: sp[0],
-            load_l_pct: sp[1],
-            load_r_pct: sp[2],
-            throttle_mode: mode(f[4])?,
-            load_mode: mode(f[5])?,
-        });
-    }
-    if sets.is_empty() || sets.len() > MAX_SETS {
-        return Err(FileError::whole(
-            path,
-            format!("a profile has 1 to {MAX_SETS} sets, found {}", sets.len()),
-        ));
-    }
+    let mode = |m: model_data::Mode| match m {
+        model_data::Mode::Hold => SetMode::Hold,
+        model_data::Mode::Interpolate => SetMode::Interpolate,
+    };
+    let sets = model_data::parse_profile(text)
+        .map_err(|e| at(path, e))?
+        .into_iter()
+        .map(|r| ProfileSet {
+            duration_s: r.duration_s,
+            throttle_pct: r.set_points[0],
+            load_l_pct: r.set_points[1],
+            load_r_pct: r.set_points[2],
+            throttle_mode: mode(r.modes[0]),
+            load_mode: mode(r.modes[1]),
+        })
+        .collect();
     Ok(ProfileData { name: name.to_string(), sets, text: text.to_string() })
 }
 
@@ -621,6 +442,12 @@ fn write_params(w: &mut dyn Write, lines: &[ParamLine]) -> io::Result<()> {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn the_file_format_and_the_model_agree_on_the_set_limit() {
+        assert_eq!(model_data::MAX_SETS, model_core::profile::MAX_SETS);
+    }
+
     use super::*;
     use model_core::{Builtin, Config, Model, Profile, Simulation};
 

@@ -23,7 +23,7 @@
 use std::fmt::{self, Write as _};
 use std::path::Path;
 
-use model_core::effects::{EffectKeyError, EFFECT_IDS, EFFECT_PARAMS};
+use model_core::effects::{effect_ids, EffectKeyError, EFFECT_PARAMS};
 use model_core::Effects;
 use serde::de::{Deserialize, Deserializer, MapAccess, Visitor};
 use toml::Spanned;
@@ -101,7 +101,10 @@ pub fn parse_effects(text: &str, origin: impl AsRef<Path>) -> Result<Effects, Fi
                 Err(EffectKeyError::UnknownEffect) => {
                     return Err(at(
                         id.span(),
-                        format!("unknown effect `{id_str}`; known effects: {}", list(EFFECT_IDS)),
+                        format!(
+                            "unknown effect `{id_str}`; known effects: {}",
+                            list(&effect_ids().collect::<Vec<_>>())
+                        ),
                     ))
                 }
                 Err(EffectKeyError::UnknownParameter(names)) => {
@@ -116,10 +119,13 @@ pub fn parse_effects(text: &str, origin: impl AsRef<Path>) -> Result<Effects, Fi
                 }
             }
         }
-        if section.0.is_empty() && !EFFECT_IDS.contains(&id_str) {
+        if section.0.is_empty() && !effect_ids().any(|e| e == id_str) {
             return Err(at(
                 id.span(),
-                format!("unknown effect `{id_str}`; known effects: {}", list(EFFECT_IDS)),
+                format!(
+                    "unknown effect `{id_str}`; known effects: {}",
+                    list(&effect_ids().collect::<Vec<_>>())
+                ),
             ));
         }
     }
@@ -175,44 +181,7 @@ pub fn constraint(id: &str) -> &'static str {
 /// The value of one effect parameter, in effect-file vocabulary: the read side of
 /// `Effects::set`. `None` for an unknown name or an effect whose `Option` is unset.
 pub fn get_param(fx: &Effects, effect: &str, param: &str) -> Option<f32> {
-    Some(match (effect, param) {
-        ("differential_friction", "coulomb_nm") => fx.differential_friction.coulomb_nm,
-        ("differential_friction", "viscous_nm_s_per_rad") => fx.differential_friction.viscous_nm_s,
-        ("axle_friction_scale", "left") => fx.axle_friction_scale[0],
-        ("axle_friction_scale", "right") => fx.axle_friction_scale[1],
-        ("controller_delay", "delay_s") => fx.controller_delay_s,
-        ("inverter_rate_scale", "accel_fwd") => fx.inverter_rate_scale[0][0],
-        ("inverter_rate_scale", "decel_fwd") => fx.inverter_rate_scale[0][1],
-        ("inverter_rate_scale", "accel_rev") => fx.inverter_rate_scale[1][0],
-        ("inverter_rate_scale", "decel_rev") => fx.inverter_rate_scale[1][1],
-        ("coupling_stiffness", "stiffness_nm_per_rad") => fx.coupling_stiffness?,
-        ("coupling_damping", "damping_nm_s_per_rad") => fx.coupling_damping?,
-        ("inertia_scale", "sut") => fx.inertia_scale[0],
-        ("inertia_scale", "load_l") => fx.inertia_scale[1],
-        ("inertia_scale", "load_r") => fx.inertia_scale[2],
-        ("connector_resistance", "resistance_ohm") => fx.connector_resistance?,
-        ("supply_resistance", "resistance_ohm") => fx.supply_resistance,
-        ("regen_efficiency", "extra_loss") => fx.regen_loss,
-        ("torque_sensor_offset", "left_nm") => fx.torque_sensor_offset[0],
-        ("torque_sensor_offset", "right_nm") => fx.torque_sensor_offset[1],
-        ("torque_sensor_gain", "left") => fx.torque_sensor_gain[0],
-        ("torque_sensor_gain", "right") => fx.torque_sensor_gain[1],
-        ("speed_sensor_gain", "sut_motor") => fx.speed_sensor_gain[0],
-        ("speed_sensor_gain", "flange_l") => fx.speed_sensor_gain[1],
-        ("speed_sensor_gain", "flange_r") => fx.speed_sensor_gain[2],
-        ("speed_sensor_gain", "siemens") => fx.speed_sensor_gain[3],
-        ("current_sensor_gain", "dpu") => fx.current_sensor_gain[0],
-        ("current_sensor_gain", "dc") => fx.current_sensor_gain[1],
-        ("current_sensor_gain", "xlml") => fx.current_sensor_gain[2],
-        ("current_sensor_gain", "xlmr") => fx.current_sensor_gain[3],
-        ("gear_backlash", "backlash_deg") => fx.gear_backlash.backlash_deg,
-        ("stribeck_friction", "peak_nm") => fx.stribeck_friction.peak_nm,
-        ("stribeck_friction", "speed_rpm") => fx.stribeck_friction.speed_rpm,
-        ("connector_resistance_drift", "alpha_per_k") => fx.connector_drift.alpha_per_k,
-        ("connector_resistance_drift", "k_per_w") => fx.connector_drift.k_per_w,
-        ("connector_resistance_drift", "time_constant_s") => fx.connector_drift.time_constant_s,
-        _ => return None,
-    })
+    fx.get(effect, param).ok().flatten()
 }
 
 /// Effect-file text for `fx`: one section per effect that differs from
@@ -327,7 +296,7 @@ mod tests {
 
     #[test]
     fn every_effect_has_a_constraint_text() {
-        for id in EFFECT_IDS {
+        for id in effect_ids() {
             assert_ne!(constraint(id), constraint("no such effect"), "{id}");
         }
     }
@@ -375,7 +344,7 @@ mod tests {
         write_effects(&all, &path).unwrap();
         assert_eq!(load_effects(&path).unwrap(), all);
         let text = std::fs::read_to_string(&path).unwrap();
-        for id in EFFECT_IDS {
+        for id in effect_ids() {
             assert!(text.contains(&format!("[{id}]")), "{id} missing:\n{text}");
         }
 

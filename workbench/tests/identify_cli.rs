@@ -43,8 +43,19 @@ fn build_rs_generates(data: &Path, scratch: &Path) -> String {
     }
     let exe = scratch.join("build_rs");
     let rustc = std::env::var("RUSTC").unwrap_or_else(|_| "rustc".into());
-    let o = Command::new(rustc)
-        .args(["--edition", "2021", "-o"])
+    // build.rs parses with model-data (its build-dependency): compile that first.
+    let rlib = scratch.join("libmodel_data.rlib");
+    let o = Command::new(&rustc)
+        .args(["--edition", "2021", "--crate-type", "rlib", "--crate-name", "model_data", "-o"])
+        .arg(&rlib)
+        .arg(model_core().join("../model-data/src/lib.rs"))
+        .output()
+        .expect("rustc");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = Command::new(&rustc)
+        .args(["--edition", "2021", "--extern"])
+        .arg(format!("model_data={}", rlib.display()))
+        .arg("-o")
         .arg(&exe)
         .arg(model_core().join("build.rs"))
         .output()

@@ -26,29 +26,11 @@ use model_core::{
 #[path = "../../../firmware/src/protocol.rs"]
 pub mod protocol;
 
-/// The firmware's target.
-pub const TARGET: &str = "thumbv7em-none-eabihf";
-/// Supply voltage the firmware traces run at (`firmware::SUPPLY_V`).
-pub const SUPPLY_V: f32 = 24.0;
-/// Bench step (`firmware::STEP_US`).
-pub const STEP_US: u32 = 1000;
 /// The rate sets traced, in the firmware's order.
 pub const RATES: [RateSet; 2] = [RateSet::Programmed, RateSet::Identified];
 
-/// The workspace root.
-pub fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("host-tests sits in the workspace").to_path_buf()
-}
-
-/// `target/firmware-tests/<sub>` (see the module docs).
-pub fn firmware_target_dir(sub: &str) -> PathBuf {
-    let base = match std::env::var_os("CARGO_TARGET_DIR") {
-        Some(d) if Path::new(&d).is_absolute() => PathBuf::from(d),
-        Some(d) => root().join(d),
-        None => root().join("target"),
-    };
-    base.join("firmware-tests").join(sub)
-}
+#[allow(unused_imports)] // each test binary uses a part
+pub use host_tests::rt::{firmware_target_dir, root, STEP_US, SUPPLY_V, TARGET};
 
 /// The binaries of the firmware crate.
 #[allow(unused_imports)] // each test binary uses a part

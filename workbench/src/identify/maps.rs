@@ -383,11 +383,13 @@ fn unzip3(it: impl Iterator<Item = (f64, f64, f64)>) -> (Vec<f64>, Vec<f64>, Vec
     (a, b, c)
 }
 
-/// Fit one 2-D map, write it into `target` and report it.
+/// Fit one 2-D map and report it; the file `{key}.csv` goes into `changed` when the
+/// campaign observed any of its cells.
 #[allow(clippy::too_many_arguments)]
 fn map2(
     rep: &mut Report,
     fits: &mut Vec<MapFit>,
+    changed: &mut Vec<String>,
     ctx: &Context<'_>,
     ex: &Extraction,
     what: &str,
@@ -396,7 +398,7 @@ fn map2(
     unit: &str,
     base: &Map2,
     obs: &[Obs],
-) -> (Map2, GridFit) {
+) -> Map2 {
     let (xs, ys) = (base.x.clone(), base.y.clone());
     let fit = fit_grid(&map2_values(base), obs, &|o: &Obs| weights_2d(&xs, &ys, o.x, o.y));
     rep.h2(title);
@@ -482,7 +484,10 @@ fn map2(
     let mut out = base.clone();
     out.z = fit.values.iter().map(|v| *v as f32).collect();
     out.comments = identified_comments(&base.comments, what, &fit, obs.len());
-    (out, fit)
+    if fit.n_observed() > 0 {
+        changed.push(format!("{key}.csv"));
+    }
+    out
 }
 
 /// `simrod identify load-maps`.
@@ -534,9 +539,10 @@ pub fn load_maps(ctx: &Context<'_>) -> Result<Identification, CmdError> {
             };
             obs.push(Obs { x: thr, y: load, v, sd, plateau: j });
         }
-        let (m, fit) = map2(
+        let m = map2(
             &mut rep,
             &mut fits,
+            &mut changed,
             ctx,
             &ex,
             "load-maps",
@@ -546,9 +552,6 @@ pub fn load_maps(ctx: &Context<'_>) -> Result<Identification, CmdError> {
             &ctx.base.load_torque[side],
             &obs,
         );
-        if fit.n_observed() > 0 {
-            changed.push(format!("load_torque_{name}.csv"));
-        }
         data.load_torque[side] = m;
     }
     if skipped > 0 {
@@ -582,9 +585,10 @@ pub fn load_maps(ctx: &Context<'_>) -> Result<Identification, CmdError> {
                     plateau: j,
                 })
                 .collect();
-            let (m, fit) = map2(
+            let m = map2(
                 &mut rep,
                 &mut fits,
+                &mut changed,
                 ctx,
                 &ph,
                 "load-maps",
@@ -594,9 +598,6 @@ pub fn load_maps(ctx: &Context<'_>) -> Result<Identification, CmdError> {
                 &ctx.base.load_current[side],
                 &obs,
             );
-            if fit.n_observed() > 0 {
-                changed.push(format!("load_current_{name}.csv"));
-            }
             data.load_current[side] = m;
         }
     }
@@ -635,9 +636,10 @@ pub fn power_maps(ctx: &Context<'_>) -> Result<Identification, CmdError> {
     let mut changed = Vec::new();
     let mut fits = Vec::new();
     let sut = mk(&|sp| 0.5 * (sp[1] + sp[2]), 0);
-    let (m, fit) = map2(
+    let m = map2(
         &mut rep,
         &mut fits,
+        &mut changed,
         ctx,
         &ex,
         "power-maps",
@@ -647,16 +649,14 @@ pub fn power_maps(ctx: &Context<'_>) -> Result<Identification, CmdError> {
         &ctx.base.sut_power,
         &sut,
     );
-    if fit.n_observed() > 0 {
-        changed.push("sut_inverter_power.csv".to_string());
-    }
     data.sut_power = m;
     for side in 0..2 {
         let name = ["L", "R"][side];
         let obs = mk(&|sp| sp[1 + side], 1 + side);
-        let (m, fit) = map2(
+        let m = map2(
             &mut rep,
             &mut fits,
+            &mut changed,
             ctx,
             &ex,
             "power-maps",
@@ -666,9 +666,6 @@ pub fn power_maps(ctx: &Context<'_>) -> Result<Identification, CmdError> {
             &ctx.base.load_power[side],
             &obs,
         );
-        if fit.n_observed() > 0 {
-            changed.push(format!("load_power_{name}.csv"));
-        }
         data.load_power[side] = m;
     }
     campaign_section(&mut rep, ctx.runs, &ex);

@@ -233,7 +233,7 @@ fn the_file_names_no_effect_and_no_noise_setting() {
         execute(&a).unwrap();
         let bytes = std::fs::read(&out).unwrap();
         let text = String::from_utf8_lossy(&bytes).to_ascii_lowercase();
-        let mut words: Vec<&str> = model_core::effects::EFFECT_IDS.to_vec();
+        let mut words: Vec<&str> = model_core::effects::effect_ids().collect();
         // Parameter names specific enough to mean something (not `left`, `dc`, ...).
         let params = model_core::effects::EFFECT_PARAMS.iter().flat_map(|(_, p)| p.iter().copied());
         words.extend(params.filter(|p| p.contains('_')));
