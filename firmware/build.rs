@@ -3,9 +3,11 @@
 //! 1. Puts the repository's `memory.x` (or `$SIMROD_MEMORY_X`, for another part) on the
 //!    linker search path, where cortex-m-rt's `link.x` includes it.
 //! 2. Fixes the physical effects at build time: `$SIMROD_EFFECTS` names an effects file
-//!    (`[effect_id]` sections of `key = number` lines, `#` comments), checked here
-//!    against model-core's own vocabulary and ranges, so a bad file is a build error
-//!    naming file and line, never a failure on the target. The result is the generated
+//!    in the workbench's format (model-data's parser: `[effect_id]` sections of
+//!    `param = number` lines, dotted keys, `#` comments), checked here against
+//!    model-core's declared vocabulary and ranges, so a bad file is a build error
+//!    naming file, line and column with the workbench's message, never a failure on
+//!    the target. The result is the generated
 //!    `BUILD_EFFECTS`, applied at init with `Effects::set` + `validate`.
 //! 3. Fixes the bench loop's profile and rate set: `$SIMROD_PROFILE` (default TP07),
 //!    `$SIMROD_RATES` (`identified`, the default, or `programmed`).
@@ -17,8 +19,9 @@ use std::fmt::Write as _;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use model_core::effects::Effects;
+use model_core::effects::{self, EffectKeyError, Effects};
 use model_core::Builtin;
+use model_data::effects::{parse_effect_file, Pos};
 
 fn main() {
     let manifest = PathBuf::from(env::var("CARGO_MANIFEST_DIR").expect("set by cargo"));
@@ -90,49 +93,36 @@ fn main() {
     }
 }
 
-fn fail(file: &Path, line: usize, msg: &str) -> ! {
-    panic!("{}:{}: {}", file.display(), line, msg)
+/// Stop the build with `file:line:col: message` (the workbench's `--effects` messages).
+fn fail(file: &Path, at: Option<Pos>, msg: &dyn std::fmt::Display) -> ! {
+    match at {
+        Some(p) => panic!("{}:{}:{}: {msg}", file.display(), p.line, p.col),
+        None => panic!("{}: {msg}", file.display()),
+    }
 }
 
-/// Parse and check an effects file; the entries in file order.
+/// Parse an effects file with the workbench's parser (model-data) and check it against
+/// model-core's declared vocabulary and ranges; the entries in file order.
 fn parse_effects(path: &Path) -> Vec<(String, String, f32)> {
-    let text = fs::read_to_string(path).unwrap_or_else(|e| fail(path, 0, &format!("cannot read: {e}")));
-    let mut fx = Effects::NONE;
-    let mut section: Option<String> = None;
-    let mut entries: Vec<(String, String, f32)> = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let ln = i + 1;
-        let line = raw.split('#').next().unwrap_or("").trim();
-        if line.is_empty() {
-            continue;
+    let text = fs::read_to_string(path).unwrap_or_else(|e| fail(path, None, &format!("cannot read: {e}")));
+    let file = parse_effect_file(&text).unwrap_or_else(|e| fail(path, Some(e.at), &e.msg));
+    for s in &file.sections {
+        if effects::effect(&s.id).is_none() {
+            fail(path, Some(s.at), &EffectKeyError::UnknownEffect.describe(&s.id, ""));
         }
-        if let Some(rest) = line.strip_prefix('[') {
-            let id =
-                rest.strip_suffix(']').unwrap_or_else(|| fail(path, ln, "expected `[effect_id]`")).trim();
-            section = Some(id.to_string());
-            continue;
-        }
-        let Some(id) = section.as_deref() else {
-            fail(path, ln, "`key = number` before any `[effect_id]` section")
-        };
-        let (k, v) = line.split_once('=').unwrap_or_else(|| fail(path, ln, "expected `key = number`"));
-        let key = k.trim();
-        // decimal -> f64 -> f32, as the workbench reads the same file (TOML floats are
-        // f64), so both sides run the very same value.
-        let v: f32 = match v.trim().replace('_', "").parse::<f64>() {
-            Ok(v) if (v as f32).is_finite() => v as f32,
-            _ => fail(path, ln, &format!("`{key}`: expected a finite number, found `{}`", v.trim())),
-        };
-        if entries.iter().any(|(i, k, _)| i == id && k == key) {
-            fail(path, ln, &format!("`{id}.{key}` given twice"));
-        }
-        if let Err(e) = fx.set(id, key, v) {
-            fail(path, ln, &format!("`{id}.{key}`: {e:?}"));
-        }
-        entries.push((id.to_string(), key.to_string(), v));
     }
-    if let Err(id) = fx.validate() {
-        fail(path, 0, &format!("effect `{id}` has an invalid parameter"));
+    let mut fx = Effects::NONE;
+    let mut entries = Vec::new();
+    for e in &file.entries {
+        // decimal -> f64 -> f32, as the workbench reads the same file.
+        let v = e.value as f32;
+        if let Err(k) = fx.set(&e.effect, &e.param, v) {
+            fail(path, Some(e.param_at), &k.describe(&e.effect, &e.param));
+        }
+        entries.push((e.effect.clone(), e.param.clone(), v));
+    }
+    if let Err(bad) = fx.check() {
+        fail(path, file.locate(bad.effect.id, Some(bad.param.name)), &bad);
     }
     entries
 }

@@ -14,9 +14,14 @@ if ! command -v qemu-system-arm >/dev/null; then
   as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq qemu-system-arm
 fi
 rustup component list --installed | grep -q '^rustfmt' || rustup component add rustfmt
+rustup component list --installed | grep -q '^clippy' || rustup component add clippy
 
 step "format"
 cargo fmt --all -- --check
+
+step "lints (clippy, all targets, warnings are errors)"
+cargo clippy --all-targets -- -D warnings
+cargo clippy -p model-core --target thumbv7em-none-eabihf -- -D warnings
 
 step "model-core builds for the target without std or alloc"
 cargo build -p model-core --target thumbv7em-none-eabihf

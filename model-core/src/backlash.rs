@@ -15,12 +15,20 @@ use crate::drivetrain::{NS, W_A};
 /// avoids chattering around zero load.
 const SEPARATION_NM: f32 = 0.05;
 
-/// Backlash state and constants.
+/// Backlash constants, fixed at construction.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Backlash {
     half_gap: f32,
     j_m: f32,
     j_side_free: f32,
+    /// Any gap at all (the gears then start apart).
+    starts_free: bool,
+}
+
+/// Backlash state: the gears in contact or apart, the gap, the flank last engaged and
+/// the free motor's speed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BacklashState {
     free: bool,
     gap: f32,
     side: f32,
@@ -29,10 +37,15 @@ pub struct Backlash {
 
 impl Backlash {
     /// `gap_rad`: total free play [rad, axle frame]; `j_m`: motor-side inertia [kg m²,
-    /// axle frame]; `j_side_free`: each side's SuT inertia without the motor share. The
-    /// gears start in the middle of the gap (nothing engaged yet).
+    /// axle frame]; `j_side_free`: each side's SuT inertia without the motor share.
     pub fn new(gap_rad: f32, j_m: f32, j_side_free: f32) -> Self {
-        Self { half_gap: 0.5 * gap_rad, j_m, j_side_free, free: gap_rad > 0.0, gap: 0.0, side: 1.0, w_m: 0.0 }
+        Self { half_gap: 0.5 * gap_rad, j_m, j_side_free, starts_free: gap_rad > 0.0 }
+    }
+
+    /// The state at rest: the gears start in the middle of the gap (nothing engaged
+    /// yet), apart if there is a gap at all.
+    pub fn initial(&self) -> BacklashState {
+        BacklashState { free: self.starts_free, gap: 0.0, side: 1.0, w_m: 0.0 }
     }
 
     /// Whether backlash is modelled at all.
@@ -41,6 +54,57 @@ impl Backlash {
         self.half_gap > 0.0
     }
 
+    /// After the shafts stepped: move the free motor and the gap, re-engage on closing
+    /// (impulse shared equally by the sides, as the open differential splits torque), or
+    /// part when the mesh torque reverses.
+    pub fn after_step(
+        &self,
+        s: &mut BacklashState,
+        motor_torque_axle: f32,
+        w_case_before: f32,
+        x: &mut [[f32; NS]; 2],
+        dt: f32,
+    ) {
+        let w_case = 0.5 * (x[0][W_A] + x[1][W_A]);
+        if s.free {
+            let w_m0 = s.w_m;
+            let w_m1 = w_m0 + motor_torque_axle / self.j_m * dt;
+            let gap1 = s.gap + (w_m1 - w_case) * dt;
+            if gap1 >= self.half_gap || gap1 <= -self.half_gap {
+                // Contact within the step, at the fraction where the gap closes: the motor
+                // flew freely until then, the impact is inelastic, and the motor torque of
+                // the rest of the step drives the engaged train. Locating the impact inside
+                // the step keeps the response continuous in the backlash (identifiable).
+                s.side = if gap1 > 0.0 { 1.0 } else { -1.0 };
+                let target = s.side * self.half_gap;
+                let span = gap1 - s.gap;
+                let f = if span != 0.0 { crate::num::clamp((target - s.gap) / span, 0.0, 1.0) } else { 1.0 };
+                s.gap = target;
+                let w_m_hit = w_m0 + motor_torque_axle / self.j_m * (f * dt);
+                let impulse = (w_m_hit - w_case) / (1.0 / self.j_m + 1.0 / (2.0 * self.j_side_free));
+                let rest = motor_torque_axle * ((1.0 - f) * dt) / (self.j_m + 2.0 * self.j_side_free);
+                for side in x.iter_mut() {
+                    side[W_A] += impulse / (2.0 * self.j_side_free) + rest;
+                }
+                s.free = false;
+            } else {
+                s.w_m = w_m1;
+                s.gap = gap1;
+            }
+        } else {
+            // Torque through the mesh: what the motor gives minus what accelerating its own
+            // inertia takes. Parting when it pulls against the engaged flank.
+            let accel = (w_case - w_case_before) / dt;
+            let mesh = motor_torque_axle - self.j_m * accel;
+            if s.side * mesh < -SEPARATION_NM {
+                s.free = true;
+                s.w_m = w_case;
+            }
+        }
+    }
+}
+
+impl BacklashState {
     /// Whether the gears are apart this step.
     #[inline]
     pub fn is_free(&self) -> bool {
@@ -64,55 +128,6 @@ impl Backlash {
             0.0
         } else {
             motor_torque_axle
-        }
-    }
-
-    /// After the shafts stepped: move the free motor and the gap, re-engage on closing
-    /// (impulse shared equally by the sides, as the open differential splits torque), or
-    /// part when the mesh torque reverses.
-    pub fn after_step(
-        &mut self,
-        motor_torque_axle: f32,
-        w_case_before: f32,
-        x: &mut [[f32; NS]; 2],
-        dt: f32,
-    ) {
-        let w_case = 0.5 * (x[0][W_A] + x[1][W_A]);
-        if self.free {
-            let w_m0 = self.w_m;
-            let w_m1 = w_m0 + motor_torque_axle / self.j_m * dt;
-            let gap1 = self.gap + (w_m1 - w_case) * dt;
-            if gap1 >= self.half_gap || gap1 <= -self.half_gap {
-                // Contact within the step, at the fraction where the gap closes: the motor
-                // flew freely until then, the impact is inelastic, and the motor torque of
-                // the rest of the step drives the engaged train. Locating the impact inside
-                // the step keeps the response continuous in the backlash (identifiable).
-                self.side = if gap1 > 0.0 { 1.0 } else { -1.0 };
-                let target = self.side * self.half_gap;
-                let span = gap1 - self.gap;
-                let f =
-                    if span != 0.0 { crate::num::clamp((target - self.gap) / span, 0.0, 1.0) } else { 1.0 };
-                self.gap = target;
-                let w_m_hit = w_m0 + motor_torque_axle / self.j_m * (f * dt);
-                let impulse = (w_m_hit - w_case) / (1.0 / self.j_m + 1.0 / (2.0 * self.j_side_free));
-                let rest = motor_torque_axle * ((1.0 - f) * dt) / (self.j_m + 2.0 * self.j_side_free);
-                for side in x.iter_mut() {
-                    side[W_A] += impulse / (2.0 * self.j_side_free) + rest;
-                }
-                self.free = false;
-            } else {
-                self.w_m = w_m1;
-                self.gap = gap1;
-            }
-        } else {
-            // Torque through the mesh: what the motor gives minus what accelerating its own
-            // inertia takes. Parting when it pulls against the engaged flank.
-            let accel = (w_case - w_case_before) / dt;
-            let mesh = motor_torque_axle - self.j_m * accel;
-            if self.side * mesh < -SEPARATION_NM {
-                self.free = true;
-                self.w_m = w_case;
-            }
         }
     }
 }

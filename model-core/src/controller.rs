@@ -1,32 +1,72 @@
 //! SuT speed controller: PID on motor speed, torque output within the motor's torque
 //! and power limits, with conditional-integration anti-windup (the integrator freezes
 //! while the output is saturated in the direction the error pushes).
+//!
+//! Configuration apart from state (as quartiq/idsp does): [`PidConfig`] holds the gains,
+//! limits and the derivative filter's factor, computed once at construction;
+//! [`PidState`] is what the step changes.
 
 use crate::params::Params;
+
+/// Controller coefficients, fixed at construction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PidConfig {
+    kp: f32,
+    ki: f32,
+    kd: f32,
+    /// Weight of the derivative's first-order filter, `dt / (tau + dt)`.
+    d_weight: f32,
+    /// [s] step.
+    dt: f32,
+    torque_max_nm: f32,
+    power_max_w: f32,
+}
+
+impl PidConfig {
+    /// Coefficients for parameters `p` at step `dt` [s]. The filter weight is computed
+    /// here once, with the operations the step used to repeat, so the bits are the same.
+    pub fn new(p: &Params, dt: f32) -> Self {
+        Self {
+            kp: p.pid_kp,
+            ki: p.pid_ki,
+            kd: p.pid_kd,
+            d_weight: dt / (p.pid_d_filter_s + dt),
+            dt,
+            torque_max_nm: p.motor_torque_max_nm,
+            power_max_w: p.motor_power_max_w,
+        }
+    }
+
+    /// Torque limit at a motor speed [rad/s] (see [`torque_limit`]).
+    #[inline]
+    fn limit(&self, speed: f32) -> f32 {
+        limit(self.torque_max_nm, self.power_max_w, speed)
+    }
+}
 
 /// Controller state.
 #[derive(Debug, Clone, Copy, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Pid {
+pub struct PidState {
     integ: f32,
     d_filt: f32,
     prev_meas: f32,
 }
 
-impl Pid {
+impl PidState {
     /// Motor torque [N m] for a command and a measured speed [rad/s], motor frame.
-    pub fn update(&mut self, p: &Params, cmd: f32, meas: f32, dt: f32) -> f32 {
+    pub fn update(&mut self, c: &PidConfig, cmd: f32, meas: f32) -> f32 {
         let e = cmd - meas;
         // Derivative on measurement through a first-order filter (no kick on steps).
-        let raw_d = (meas - self.prev_meas) / dt;
+        let raw_d = (meas - self.prev_meas) / c.dt;
         self.prev_meas = meas;
-        let a = dt / (p.pid_d_filter_s + dt);
-        self.d_filt += a * (raw_d - self.d_filt);
-        let lim = torque_limit(p, meas);
-        let unsat = p.pid_kp * e + self.integ - p.pid_kd * self.d_filt;
+        self.d_filt += c.d_weight * (raw_d - self.d_filt);
+        let lim = c.limit(meas);
+        let unsat = c.kp * e + self.integ - c.kd * self.d_filt;
         let pushing_out = (unsat > lim && e > 0.0) || (unsat < -lim && e < 0.0);
         if !pushing_out {
-            self.integ = crate::num::clamp(self.integ + p.pid_ki * e * dt, -lim, lim);
+            self.integ = crate::num::clamp(self.integ + c.ki * e * c.dt, -lim, lim);
         }
         crate::num::clamp(unsat, -lim, lim)
     }
@@ -36,11 +76,49 @@ impl Pid {
 /// base speed.
 #[inline]
 pub fn torque_limit(p: &Params, speed: f32) -> f32 {
+    limit(p.motor_torque_max_nm, p.motor_power_max_w, speed)
+}
+
+#[inline]
+fn limit(torque_max: f32, power_max: f32, speed: f32) -> f32 {
     let w = if speed < 0.0 { -speed } else { speed };
-    let by_power = if w > 0.0 { p.motor_power_max_w / w } else { p.motor_torque_max_nm };
-    if by_power < p.motor_torque_max_nm {
+    let by_power = if w > 0.0 { power_max / w } else { torque_max };
+    if by_power < torque_max {
         by_power
     } else {
-        p.motor_torque_max_nm
+        torque_max
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The hoisted filter weight gives the step the same bits as computing it each step.
+    #[test]
+    fn hoisted_filter_weight_is_bit_identical() {
+        let p = Params { pid_kd: 0.05, pid_d_filter_s: 0.003, ..Params::default() };
+        for dt in [1e-3f32, 1e-4, 3.7e-5] {
+            let c = PidConfig::new(&p, dt);
+            let mut s = PidState::default();
+            let (mut integ, mut d_filt, mut prev) = (0.0f32, 0.0f32, 0.0f32);
+            for k in 0..2000 {
+                let meas = (k as f32 * 0.01).sin() * 50.0;
+                let cmd = if k % 500 < 250 { 100.0 } else { -20.0 };
+                // The step as it was: the weight recomputed from the parameters.
+                let e = cmd - meas;
+                let raw_d = (meas - prev) / dt;
+                prev = meas;
+                let a = dt / (p.pid_d_filter_s + dt);
+                d_filt += a * (raw_d - d_filt);
+                let lim = torque_limit(&p, meas);
+                let unsat = p.pid_kp * e + integ - p.pid_kd * d_filt;
+                if !((unsat > lim && e > 0.0) || (unsat < -lim && e < 0.0)) {
+                    integ = crate::num::clamp(integ + p.pid_ki * e * dt, -lim, lim);
+                }
+                let want = crate::num::clamp(unsat, -lim, lim);
+                assert_eq!(s.update(&c, cmd, meas).to_bits(), want.to_bits(), "dt {dt} step {k}");
+            }
+        }
     }
 }

@@ -101,6 +101,8 @@ fn min(a: f64, b: f64) -> f64 {
 
 /// Square root by Newton's method, basic operations only (bit-identical everywhere).
 fn sqrt_f64(x: f64) -> f64 {
+    // Not `x <= 0.0`: NaN must take this branch too.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     if !(x > 0.0) {
         return 0.0;
     }

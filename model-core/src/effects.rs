@@ -2,9 +2,19 @@
 //! default to "off". On the host they are set at run time (`--effects FILE.toml`); on
 //! the target the firmware builds a `const Effects` from the same file.
 //!
-//! Adding an effect: a field here (off by default), its few lines at the one place in
-//! `model.rs` where it acts, and its id and parameter names in `EFFECT_PARAMS` — nothing
-//! else changes.
+//! Every effect is declared once, in the `effects!` invocation below: its field in
+//! [`Effects`] and neutral value, its id and parameter names (the effect-file
+//! vocabulary), each parameter's unit, valid range and doc line, what `simrod diagnose`
+//! needs to fit it ([`Fit`]) and the hidden-effect case that proves it ([`Proof`]). The
+//! struct, [`Effects::NONE`], [`Effects::get`]/[`Effects::set`], [`Effects::validate`],
+//! [`EFFECT_PARAMS`], [`LIBRARY`] and the table [`EFFECTS`] are generated from it.
+//! Adding an effect: one declaration here, and its few lines at the one place in
+//! `model.rs` where it acts (`docs/ADDING_AN_EFFECT.md`).
+
+use core::fmt;
+
+use crate::params::Params;
+use crate::profile::Builtin;
 
 /// Coulomb + viscous friction at the differential case (thesis 7: "missing").
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -50,165 +60,602 @@ pub struct GearBacklash {
     pub backlash_deg: f32,
 }
 
-/// The effect library. `Effects::NONE` is the thesis model.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Effects {
-    /// `differential_friction`: torque lost at the differential case.
-    pub differential_friction: DifferentialFriction,
-    /// `axle_friction_scale`: multipliers on the L, R friction maps (1 = off).
-    pub axle_friction_scale: [f32; 2],
-    /// `controller_delay`: [s] pure delay between the throttle and the speed controller
-    /// (thesis 6.1). Capped at `DELAY_CAPACITY` steps.
-    pub controller_delay_s: f32,
-    /// `inverter_rate_scale`: multipliers on the Curtis ramp rates `[accel, decel]` for
-    /// `[forward, reverse]` (1 = off).
-    pub inverter_rate_scale: [[f32; 2]; 2],
-    /// `coupling_stiffness`: [N m/rad] replaces the coupling stiffness when set.
-    pub coupling_stiffness: Option<f32>,
-    /// `coupling_damping`: [N m s/rad] replaces the coupling damping when set.
-    pub coupling_damping: Option<f32>,
-    /// `inertia_scale`: multipliers on the SuT, load L, load R inertias (1 = off).
-    pub inertia_scale: [f32; 3],
-    /// `connector_resistance`: [ohm] replaces the connector resistance when set.
-    pub connector_resistance: Option<f32>,
-    /// `supply_resistance`: [ohm] DPU source resistance: the busbars sag with current.
-    pub supply_resistance: f32,
-    /// `regen_efficiency`: [-] fraction of regenerated power additionally lost (0 = off).
-    pub regen_loss: f32,
-    /// `torque_sensor_offset`: [N m] added to C_Kistler_L, C_Kistler_R.
-    pub torque_sensor_offset: [f32; 2],
-    /// `torque_sensor_gain`: [-] multiplies C_Kistler_L, C_Kistler_R (1 = off).
-    pub torque_sensor_gain: [f32; 2],
-    /// `speed_sensor_gain`: [-] multiplies SuTMotorEnc, T_Kistler_L, T_Kistler_R, SiemensEnc.
-    pub speed_sensor_gain: [f32; 4],
-    /// `current_sensor_gain`: [-] multiplies I_DPU 2.7, I_DC, the two I_XLML probes, I_XLMR 2.3.
-    pub current_sensor_gain: [f32; 4],
-    /// `gear_backlash`: free play in the SuT gearbox.
-    pub gear_backlash: GearBacklash,
-    /// `stribeck_friction`: low-speed friction peak (not in the diagnose library).
-    pub stribeck_friction: StribeckFriction,
-    /// `connector_resistance_drift`: thermal drift of the connector (not in the
-    /// diagnose library).
-    pub connector_drift: ConnectorDrift,
-}
-
 /// Longest controller delay in steps (1 KiB of state): 0.256 s at 1 ms, 25.6 ms at 100 µs,
 /// well beyond the lag the thesis saw (6.1); sized so the firmware fits in 8 KiB of RAM.
 pub const DELAY_CAPACITY: usize = 256;
 
-/// The effects `simrod diagnose` may propose. `stribeck_friction` and
-/// `connector_resistance_drift` are deliberately left out: the virtual bench uses them to
-/// prove that diagnose reports what its library cannot explain instead of guessing.
-pub const LIBRARY: &[&str] = &[
-    "differential_friction",
-    "axle_friction_scale",
-    "gear_backlash",
-    "controller_delay",
-    "inverter_rate_scale",
-    "coupling_stiffness",
-    "coupling_damping",
-    "inertia_scale",
-    "connector_resistance",
-    "supply_resistance",
-    "regen_efficiency",
-    "torque_sensor_offset",
-    "torque_sensor_gain",
-    "speed_sensor_gain",
-    "current_sensor_gain",
-];
+/// The values a parameter accepts: finite, within optional bounds, and checked only
+/// while a sibling parameter is non-zero (a parameter that means nothing while its
+/// effect is off, such as a time constant).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Range {
+    /// Lower bound (`-inf`: none).
+    pub min: f32,
+    /// Whether `min` itself is allowed.
+    pub min_inclusive: bool,
+    /// Upper bound (`+inf`: none).
+    pub max: f32,
+    /// Whether `max` itself is allowed.
+    pub max_inclusive: bool,
+    /// Checked only while this parameter of the same effect is non-zero.
+    pub when_nonzero: Option<&'static str>,
+}
+
+impl Range {
+    /// Any finite value.
+    pub const FINITE: Self = Self {
+        min: f32::NEG_INFINITY,
+        min_inclusive: false,
+        max: f32::INFINITY,
+        max_inclusive: false,
+        when_nonzero: None,
+    };
+    /// Finite and `>= min`.
+    pub const fn at_least(min: f32) -> Self {
+        Self { min, min_inclusive: true, ..Self::FINITE }
+    }
+    /// Finite and `> min`.
+    pub const fn above(min: f32) -> Self {
+        Self { min, ..Self::FINITE }
+    }
+    /// In `[min, max]`.
+    pub const fn closed(min: f32, max: f32) -> Self {
+        Self { min, min_inclusive: true, max, max_inclusive: true, when_nonzero: None }
+    }
+    /// In `[min, max)`.
+    pub const fn half_open(min: f32, max: f32) -> Self {
+        Self { min, min_inclusive: true, max, max_inclusive: false, when_nonzero: None }
+    }
+    /// Only checked while parameter `other` of the same effect is non-zero.
+    pub const fn when_nonzero(self, other: &'static str) -> Self {
+        Self { when_nonzero: Some(other), ..self }
+    }
+
+    /// Whether `v` is in range (the `when_nonzero` condition is the caller's).
+    pub fn contains(&self, v: f32) -> bool {
+        let lo = v > self.min || (self.min_inclusive && v == self.min);
+        let hi = v < self.max || (self.max_inclusive && v == self.max);
+        v.is_finite() && lo && hi
+    }
+}
+
+impl fmt::Display for Range {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (has_min, has_max) = (self.min > f32::NEG_INFINITY, self.max < f32::INFINITY);
+        match (has_min, has_max) {
+            (false, false) => f.write_str("finite")?,
+            (true, false) => {
+                write!(f, "finite and {} {}", if self.min_inclusive { ">=" } else { ">" }, self.min)?
+            }
+            (false, true) => {
+                write!(f, "finite and {} {}", if self.max_inclusive { "<=" } else { "<" }, self.max)?
+            }
+            (true, true) => write!(
+                f,
+                "in {}{}, {}{}",
+                if self.min_inclusive { '[' } else { '(' },
+                self.min,
+                self.max,
+                if self.max_inclusive { ']' } else { ')' }
+            )?,
+        }
+        if let Some(other) = self.when_nonzero {
+            write!(f, " when {other} is not 0")?;
+        }
+        Ok(())
+    }
+}
+
+/// The finite-difference step of a fitted parameter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Step {
+    /// An absolute step, in the parameter's unit.
+    Abs(f64),
+    /// A fraction of the neutral value (for overrides of model values that differ in scale).
+    Rel(f64),
+}
+
+/// What `simrod diagnose` needs to fit a parameter: the step of its sensitivity (the
+/// effect's realistic magnitude, also the scale that conditions the fit) and the
+/// physical bounds of the search, tighter than [`Range`] (what the model accepts).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fit {
+    /// Finite-difference step.
+    pub step: Step,
+    /// Lower search bound.
+    pub lower: f64,
+    /// Upper search bound.
+    pub upper: f64,
+    /// The model realises the parameter only in whole time steps (a delay).
+    pub whole_steps: bool,
+}
+
+impl Fit {
+    /// An absolute step and bounds.
+    pub const fn abs(step: f64, lower: f64, upper: f64) -> Self {
+        Self { step: Step::Abs(step), lower, upper, whole_steps: false }
+    }
+    /// A step relative to the neutral value, and bounds.
+    pub const fn rel(step: f64, lower: f64, upper: f64) -> Self {
+        Self { step: Step::Rel(step), lower, upper, whole_steps: false }
+    }
+    /// Realised in whole time steps.
+    pub const fn in_whole_steps(self) -> Self {
+        Self { whole_steps: true, ..self }
+    }
+    /// The step at a neutral value.
+    pub fn delta(&self, neutral: f64) -> f64 {
+        match self.step {
+            Step::Abs(d) => d,
+            Step::Rel(r) => r * neutral,
+        }
+    }
+}
+
+/// The hidden-effect proof of a library effect (`workbench::diagnose::proof`): which
+/// parameter to hide, the range its value is drawn from, and a profile that excites it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Proof {
+    /// The hidden parameter.
+    pub param: &'static str,
+    /// Range of the drawn value.
+    pub lo: f32,
+    /// Range of the drawn value.
+    pub hi: f32,
+    /// Profile that excites the effect.
+    pub profile: Builtin,
+    /// Throttle and load scalings of the profile.
+    pub scales: (f32, f32),
+}
+
+/// One parameter of an effect, as declared.
+#[derive(Debug, Clone, Copy)]
+pub struct ParamDecl {
+    /// Name in effect files.
+    pub name: &'static str,
+    /// Unit (`-` for factors).
+    pub unit: &'static str,
+    /// One line: what it is.
+    pub doc: &'static str,
+    /// Values the model accepts.
+    pub range: Range,
+    /// How diagnose fits it; `None` for effects outside the diagnose library.
+    pub fit: Option<Fit>,
+    /// For an override of a model value: that value (what applies while unset).
+    pub model: Option<fn(&Params) -> f32>,
+}
+
+impl ParamDecl {
+    /// The value that leaves the model as it is: the "off" value, or for an override
+    /// the model's own value.
+    pub fn neutral(&self, effect: &str, p: &Params) -> f32 {
+        match (Effects::NONE.get(effect, self.name), self.model) {
+            (Ok(Some(v)), _) => v,
+            (_, Some(model)) => model(p),
+            _ => 0.0,
+        }
+    }
+}
+
+/// One effect, as declared.
+#[derive(Debug, Clone, Copy)]
+pub struct EffectDecl {
+    /// Id in effect files.
+    pub id: &'static str,
+    /// What it models.
+    pub doc: &'static str,
+    /// Its parameters, in file order.
+    pub params: &'static [ParamDecl],
+    /// Hidden-effect proof case; `Some` exactly for the diagnose library.
+    pub proof: Option<Proof>,
+}
+
+impl EffectDecl {
+    /// Whether `simrod diagnose` may propose it (every parameter has a [`Fit`]).
+    pub const fn in_library(&self) -> bool {
+        let mut i = 0;
+        while i < self.params.len() {
+            if self.params[i].fit.is_none() {
+                return false;
+            }
+            i += 1;
+        }
+        !self.params.is_empty()
+    }
+
+    /// A parameter by name.
+    pub fn param(&self, name: &str) -> Option<&'static ParamDecl> {
+        self.params.iter().find(|p| p.name == name)
+    }
+
+    /// What [`Effects::validate`] requires of this effect, for messages.
+    pub fn constraint(&'static self) -> Constraint {
+        Constraint(self)
+    }
+}
+
+/// What an effect's parameters must be, displayed `p1 must be ...; p2 must be ...`.
+#[derive(Debug, Clone, Copy)]
+pub struct Constraint(&'static EffectDecl);
+
+impl fmt::Display for Constraint {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, p) in self.0.params.iter().enumerate() {
+            write!(f, "{}{} must be {}", if i > 0 { "; " } else { "" }, p.name, p.range)?;
+        }
+        Ok(())
+    }
+}
+
+/// The declaration of an effect by id.
+pub fn effect(id: &str) -> Option<&'static EffectDecl> {
+    EFFECTS.iter().find(|e| e.id == id)
+}
+
+/// Where an effect parameter is stored: a plain value, or an override of a model value
+/// (`None` while unset).
+trait Slot {
+    fn put(&mut self, v: f32);
+    fn read(&self) -> Option<f32>;
+}
+
+impl Slot for f32 {
+    fn put(&mut self, v: f32) {
+        *self = v;
+    }
+    fn read(&self) -> Option<f32> {
+        Some(*self)
+    }
+}
+
+impl Slot for Option<f32> {
+    fn put(&mut self, v: f32) {
+        *self = Some(v);
+    }
+    fn read(&self) -> Option<f32> {
+        *self
+    }
+}
+
+/// Declares the effect library. Per effect: its doc, `id => field: Type = neutral`, its
+/// proof case (`Some(Proof)` puts it in the diagnose library, whose parameters then all
+/// need a `fit`), and per parameter `name(accessor into the field): unit, range, fit,
+/// model value it overrides, doc`.
+macro_rules! effects {
+    ($(
+        $(#[doc = $doc:literal])*
+        $id:ident => $field:ident : $ty:ty = $neutral:expr, proof $proof:expr;
+        {$(
+            $param:ident ($($acc:tt)*) : $unit:literal, $range:expr, fit $fit:expr, model $model:expr,
+                $pdoc:literal;
+        )+}
+    )+) => {
+        /// The effect library. `Effects::NONE` is the thesis model.
+        #[derive(Debug, Clone, Copy, PartialEq)]
+        #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+        pub struct Effects {
+            $(
+                #[doc = concat!("`", stringify!($id), "`:", $($doc),*)]
+                pub $field: $ty,
+            )+
+        }
+
+        impl Effects {
+            /// Every effect off: the thesis model.
+            pub const NONE: Self = Self { $($field: $neutral,)+ };
+
+            /// Set one parameter by effect id and parameter name (the effect-file
+            /// vocabulary). Range checks happen in [`Effects::validate`], once every
+            /// parameter is set (some ranges depend on a sibling parameter).
+            pub fn set(&mut self, effect: &str, param: &str, v: f32) -> Result<(), EffectKeyError> {
+                $(
+                    if effect == stringify!($id) {
+                        $(
+                            if param == stringify!($param) {
+                                Slot::put(&mut self.$field $($acc)*, v);
+                                return Ok(());
+                            }
+                        )+
+                        return Err(EffectKeyError::UnknownParameter(&[$(stringify!($param)),+]));
+                    }
+                )+
+                Err(EffectKeyError::UnknownEffect)
+            }
+
+            /// One parameter's value; `None` for an override that is not set (the
+            /// model's own value applies).
+            pub fn get(&self, effect: &str, param: &str) -> Result<Option<f32>, EffectKeyError> {
+                $(
+                    if effect == stringify!($id) {
+                        $(
+                            if param == stringify!($param) {
+                                return Ok(Slot::read(&self.$field $($acc)*));
+                            }
+                        )+
+                        return Err(EffectKeyError::UnknownParameter(&[$(stringify!($param)),+]));
+                    }
+                )+
+                Err(EffectKeyError::UnknownEffect)
+            }
+        }
+
+        /// Every effect, as declared, in declaration order.
+        pub const EFFECTS: &[EffectDecl] = &[$(
+            EffectDecl {
+                id: stringify!($id),
+                doc: concat!($($doc),*),
+                params: &[$(
+                    ParamDecl {
+                        name: stringify!($param),
+                        unit: $unit,
+                        doc: $pdoc,
+                        range: $range,
+                        fit: $fit,
+                        model: $model,
+                    },
+                )+],
+                proof: $proof,
+            },
+        )+];
+
+        /// The parameter names of each effect, as written in effect files.
+        pub const EFFECT_PARAMS: &[(&str, &[&str])] = &[$((stringify!($id), &[$(stringify!($param)),+]),)+];
+    };
+}
+
+use Builtin::{TP07, TP11, TP14};
+
+const fn proof(param: &'static str, lo: f32, hi: f32, profile: Builtin, scales: (f32, f32)) -> Option<Proof> {
+    Some(Proof { param, lo, hi, profile, scales })
+}
+
+const NON_NEG: Range = Range::at_least(0.0);
+const POSITIVE: Range = Range::above(0.0);
+const FACTOR: Option<Fit> = Some(Fit::abs(0.05, 0.1, 5.0));
+const SENSOR_GAIN: Option<Fit> = Some(Fit::abs(0.02, 0.5, 2.0));
+
+// The order is the diagnose library's order (its ranking breaks ties by it) and the
+// order of sections in written effect files.
+effects! {
+    /// Torque lost at the differential case (thesis 7: "missing").
+    differential_friction => differential_friction: DifferentialFriction =
+        DifferentialFriction { coulomb_nm: 0.0, viscous_nm_s: 0.0 },
+        proof proof("coulomb_nm", 2.0, 6.0, TP07, (1.0, 1.0));
+    {
+        coulomb_nm(.coulomb_nm): "N m", NON_NEG, fit Some(Fit::abs(1.0, 0.0, 60.0)), model None,
+            "Coulomb friction torque at the case, axle frame (0 = off)";
+        viscous_nm_s_per_rad(.viscous_nm_s): "N m s/rad", NON_NEG, fit Some(Fit::abs(0.2, 0.0, 20.0)),
+            model None, "viscous coefficient at the case, axle frame (0 = off)";
+    }
+    /// Multipliers on the L, R friction maps (1 = off).
+    axle_friction_scale => axle_friction_scale: [f32; 2] = [1.0, 1.0],
+        proof proof("left", 1.15, 1.4, TP11, (0.79, 0.0));
+    {
+        left([0]): "-", NON_NEG, fit FACTOR, model None, "multiplies the L friction map (1 = off)";
+        right([1]): "-", NON_NEG, fit FACTOR, model None, "multiplies the R friction map (1 = off)";
+    }
+    /// Free play in the SuT gearbox.
+    gear_backlash => gear_backlash: GearBacklash = GearBacklash { backlash_deg: 0.0 },
+        proof proof("backlash_deg", 1.0, 4.0, TP07, (1.0, 1.0));
+    {
+        backlash_deg(.backlash_deg): "deg", Range::closed(0.0, 30.0), fit Some(Fit::abs(0.5, 0.0, 20.0)),
+            model None, "total free play at the differential case (0 = off)";
+    }
+    /// [s] pure delay between the throttle and the speed controller (thesis 6.1).
+    /// Capped at `DELAY_CAPACITY` steps.
+    controller_delay => controller_delay_s: f32 = 0.0,
+        proof proof("delay_s", 0.05, 0.15, TP14, (1.0, 0.0));
+    {
+        delay_s(): "s", NON_NEG, fit Some(Fit::abs(0.02, 0.0, 0.25).in_whole_steps()), model None,
+            "throttle-to-controller delay, at most 256 steps (0 = off)";
+    }
+    /// Multipliers on the Curtis ramp rates `[accel, decel]` for `[forward, reverse]`
+    /// (1 = off).
+    inverter_rate_scale => inverter_rate_scale: [[f32; 2]; 2] = [[1.0, 1.0], [1.0, 1.0]],
+        proof proof("decel_fwd", 0.7, 0.9, TP14, (1.0, 0.0));
+    {
+        accel_fwd([0][0]): "-", POSITIVE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
+            "multiplies the forward acceleration rates (1 = off)";
+        decel_fwd([0][1]): "-", POSITIVE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
+            "multiplies the forward deceleration rates (1 = off)";
+        accel_rev([1][0]): "-", POSITIVE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
+            "multiplies the reverse acceleration rates (1 = off)";
+        decel_rev([1][1]): "-", POSITIVE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
+            "multiplies the reverse deceleration rates (1 = off)";
+    }
+    /// [N m/rad] replaces the coupling stiffness when set.
+    coupling_stiffness => coupling_stiffness: Option<f32> = None,
+        proof proof("stiffness_nm_per_rad", 6000.0, 12000.0, TP07, (1.0, 1.0));
+    {
+        stiffness_nm_per_rad(): "N m/rad", POSITIVE, fit Some(Fit::rel(0.2, 300.0, 60_000.0)),
+            model Some(|p| p.coupling_stiffness), "replaces the flexible coupling stiffness";
+    }
+    /// [N m s/rad] replaces the coupling damping when set.
+    coupling_damping => coupling_damping: Option<f32> = None,
+        proof proof("damping_nm_s_per_rad", 10.0, 30.0, TP07, (1.0, 1.0));
+    {
+        damping_nm_s_per_rad(): "N m s/rad", NON_NEG, fit Some(Fit::abs(2.0, 0.0, 300.0)),
+            model Some(|p| p.coupling_damping), "replaces the flexible coupling damping";
+    }
+    /// Multipliers on the SuT, load L, load R inertias (1 = off).
+    inertia_scale => inertia_scale: [f32; 3] = [1.0, 1.0, 1.0],
+        proof proof("sut", 1.2, 1.5, TP14, (1.0, 0.0));
+    {
+        sut([0]): "-", POSITIVE, fit FACTOR, model None, "multiplies the SuT-side inertia (1 = off)";
+        load_l([1]): "-", POSITIVE, fit FACTOR, model None, "multiplies the load L inertia (1 = off)";
+        load_r([2]): "-", POSITIVE, fit FACTOR, model None, "multiplies the load R inertia (1 = off)";
+    }
+    /// [ohm] replaces the connector resistance when set.
+    connector_resistance => connector_resistance: Option<f32> = None,
+        proof proof("resistance_ohm", 0.025, 0.04, TP11, (0.79, 1.0));
+    {
+        resistance_ohm(): "ohm", NON_NEG, fit Some(Fit::abs(0.005, 0.0, 0.3)),
+            model Some(|p| p.connector_resistance), "replaces the busbar-to-inverter connector resistance";
+    }
+    /// [ohm] DPU source resistance: the busbars sag with current.
+    supply_resistance => supply_resistance: f32 = 0.0,
+        proof proof("resistance_ohm", 0.005, 0.02, TP11, (0.79, 1.0));
+    {
+        resistance_ohm(): "ohm", Range::half_open(0.0, 1.0), fit Some(Fit::abs(0.005, 0.0, 0.5)),
+            model None, "DPU source resistance (0 = off)";
+    }
+    /// [-] fraction of regenerated power additionally lost (0 = off).
+    regen_efficiency => regen_loss: f32 = 0.0,
+        proof proof("extra_loss", 0.1, 0.3, TP07, (1.0, 1.0));
+    {
+        extra_loss(): "-", Range::half_open(0.0, 1.0), fit Some(Fit::abs(0.05, 0.0, 0.9)), model None,
+            "fraction of regenerated power additionally lost (0 = off)";
+    }
+    /// [N m] added to C_Kistler_L, C_Kistler_R.
+    torque_sensor_offset => torque_sensor_offset: [f32; 2] = [0.0, 0.0],
+        proof proof("left_nm", 0.5, 2.0, TP11, (0.79, 0.0));
+    {
+        left_nm([0]): "N m", Range::FINITE, fit Some(Fit::abs(1.0, -60.0, 60.0)), model None,
+            "added to C_Kistler_L (0 = off)";
+        right_nm([1]): "N m", Range::FINITE, fit Some(Fit::abs(1.0, -60.0, 60.0)), model None,
+            "added to C_Kistler_R (0 = off)";
+    }
+    /// [-] multiplies C_Kistler_L, C_Kistler_R (1 = off).
+    torque_sensor_gain => torque_sensor_gain: [f32; 2] = [1.0, 1.0],
+        proof proof("right", 1.02, 1.06, TP07, (1.0, 1.0));
+    {
+        left([0]): "-", POSITIVE, fit SENSOR_GAIN, model None, "multiplies C_Kistler_L (1 = off)";
+        right([1]): "-", POSITIVE, fit SENSOR_GAIN, model None, "multiplies C_Kistler_R (1 = off)";
+    }
+    /// [-] multiplies SuTMotorEnc, T_Kistler_L, T_Kistler_R, SiemensEnc (1 = off).
+    speed_sensor_gain => speed_sensor_gain: [f32; 4] = [1.0; 4],
+        proof proof("sut_motor", 1.01, 1.03, TP11, (0.79, 0.0));
+    {
+        sut_motor([0]): "-", POSITIVE, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
+            "multiplies SuTMotorEnc (1 = off)";
+        flange_l([1]): "-", POSITIVE, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
+            "multiplies T_Kistler_L (1 = off)";
+        flange_r([2]): "-", POSITIVE, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
+            "multiplies T_Kistler_R (1 = off)";
+        siemens([3]): "-", POSITIVE, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
+            "multiplies SiemensEnc (1 = off)";
+    }
+    /// [-] multiplies I_DPU 2.7, I_DC, the two I_XLML probes, I_XLMR 2.3 (1 = off).
+    current_sensor_gain => current_sensor_gain: [f32; 4] = [1.0; 4],
+        proof proof("dpu", 1.02, 1.06, TP07, (1.0, 1.0));
+    {
+        dpu([0]): "-", POSITIVE, fit SENSOR_GAIN, model None, "multiplies I_DPU 2.7 (1 = off)";
+        dc([1]): "-", POSITIVE, fit SENSOR_GAIN, model None, "multiplies I_DC (1 = off)";
+        xlml([2]): "-", POSITIVE, fit SENSOR_GAIN, model None, "multiplies both I_XLML probes (1 = off)";
+        xlmr([3]): "-", POSITIVE, fit SENSOR_GAIN, model None, "multiplies I_XLMR 2.3 (1 = off)";
+    }
+    /// Low-speed friction peak. Not in the diagnose library: the virtual bench hides it
+    /// to prove that diagnose reports what its library cannot explain.
+    stribeck_friction => stribeck_friction: StribeckFriction =
+        StribeckFriction { peak_nm: 0.0, speed_rpm: 0.0 }, proof None;
+    {
+        peak_nm(.peak_nm): "N m", NON_NEG, fit None, model None,
+            "extra friction torque near standstill, per side (0 = off)";
+        speed_rpm(.speed_rpm): "rpm", POSITIVE.when_nonzero("peak_nm"), fit None, model None,
+            "axle speed over which it decays";
+    }
+    /// Thermal drift of the connector resistance. Not in the diagnose library (as
+    /// `stribeck_friction`).
+    connector_resistance_drift => connector_drift: ConnectorDrift =
+        ConnectorDrift { alpha_per_k: 0.0, k_per_w: 0.0, time_constant_s: 0.0 }, proof None;
+    {
+        alpha_per_k(.alpha_per_k): "1/K", Range::FINITE, fit None, model None,
+            "temperature coefficient of resistance (copper 0.0039)";
+        k_per_w(.k_per_w): "K/W", NON_NEG, fit None, model None,
+            "steady temperature rise per watt dissipated (0 = off)";
+        time_constant_s(.time_constant_s): "s", POSITIVE.when_nonzero("k_per_w"), fit None, model None,
+            "thermal time constant";
+    }
+}
+
+const LIBRARY_LEN: usize = {
+    let mut n = 0;
+    let mut i = 0;
+    while i < EFFECTS.len() {
+        if EFFECTS[i].in_library() {
+            n += 1;
+        }
+        i += 1;
+    }
+    n
+};
+
+const LIBRARY_IDS: [&str; LIBRARY_LEN] = {
+    let mut out = [""; LIBRARY_LEN];
+    let (mut n, mut i) = (0, 0);
+    while i < EFFECTS.len() {
+        if EFFECTS[i].in_library() {
+            out[n] = EFFECTS[i].id;
+            n += 1;
+        }
+        i += 1;
+    }
+    out
+};
+
+/// The effects `simrod diagnose` may propose: those declared with a proof case and a
+/// fit for every parameter. `stribeck_friction` and `connector_resistance_drift` are
+/// deliberately left out: the virtual bench uses them to prove that diagnose reports
+/// what its library cannot explain instead of guessing.
+pub const LIBRARY: &[&str] = &LIBRARY_IDS;
+
+/// Why an effect's parameters are refused: the first parameter out of its range.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Invalid {
+    /// The effect's declaration.
+    pub effect: &'static EffectDecl,
+    /// The parameter out of range.
+    pub param: &'static ParamDecl,
+    /// Its value.
+    pub value: f32,
+}
+
+impl PartialEq for EffectDecl {
+    fn eq(&self, other: &Self) -> bool {
+        self.id == other.id
+    }
+}
+
+impl PartialEq for ParamDecl {
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name && self.unit == other.unit
+    }
+}
+
+impl fmt::Display for Invalid {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (id, p) = (self.effect.id, self.param.name);
+        write!(f, "[{id}]: {p} = {} is invalid: {p} must be {}", self.value, self.param.range)
+    }
+}
 
 impl Effects {
-    /// Every effect off: the thesis model.
-    pub const NONE: Self = Self {
-        differential_friction: DifferentialFriction { coulomb_nm: 0.0, viscous_nm_s: 0.0 },
-        axle_friction_scale: [1.0, 1.0],
-        controller_delay_s: 0.0,
-        inverter_rate_scale: [[1.0, 1.0], [1.0, 1.0]],
-        coupling_stiffness: None,
-        coupling_damping: None,
-        inertia_scale: [1.0, 1.0, 1.0],
-        connector_resistance: None,
-        supply_resistance: 0.0,
-        regen_loss: 0.0,
-        torque_sensor_offset: [0.0, 0.0],
-        torque_sensor_gain: [1.0, 1.0],
-        speed_sensor_gain: [1.0; 4],
-        current_sensor_gain: [1.0; 4],
-        gear_backlash: GearBacklash { backlash_deg: 0.0 },
-        stribeck_friction: StribeckFriction { peak_nm: 0.0, speed_rpm: 0.0 },
-        connector_drift: ConnectorDrift { alpha_per_k: 0.0, k_per_w: 0.0, time_constant_s: 0.0 },
-    };
-
     /// True when every effect is off.
     pub fn is_none(&self) -> bool {
         *self == Self::NONE
     }
 
-    /// Check ranges; returns the id of the first effect with an invalid parameter.
-    pub fn validate(&self) -> Result<(), &'static str> {
-        let fin = |v: f32| v.is_finite();
-        let pos = |v: f32| v.is_finite() && v > 0.0;
-        let df = &self.differential_friction;
-        if !(fin(df.coulomb_nm) && df.coulomb_nm >= 0.0 && fin(df.viscous_nm_s) && df.viscous_nm_s >= 0.0) {
-            return Err("differential_friction");
-        }
-        if !self.axle_friction_scale.iter().all(|v| fin(*v) && *v >= 0.0) {
-            return Err("axle_friction_scale");
-        }
-        if !(fin(self.controller_delay_s) && self.controller_delay_s >= 0.0) {
-            return Err("controller_delay");
-        }
-        if !self.inverter_rate_scale.iter().flatten().all(|v| pos(*v)) {
-            return Err("inverter_rate_scale");
-        }
-        if self.coupling_stiffness.is_some_and(|v| !pos(v)) {
-            return Err("coupling_stiffness");
-        }
-        if self.coupling_damping.is_some_and(|v| !(fin(v) && v >= 0.0)) {
-            return Err("coupling_damping");
-        }
-        if !self.inertia_scale.iter().all(|v| pos(*v)) {
-            return Err("inertia_scale");
-        }
-        if self.connector_resistance.is_some_and(|v| !(fin(v) && v >= 0.0)) {
-            return Err("connector_resistance");
-        }
-        if !(fin(self.supply_resistance) && self.supply_resistance >= 0.0 && self.supply_resistance < 1.0) {
-            return Err("supply_resistance");
-        }
-        if !(fin(self.regen_loss) && (0.0..1.0).contains(&self.regen_loss)) {
-            return Err("regen_efficiency");
-        }
-        if !self.torque_sensor_offset.iter().all(|v| fin(*v)) {
-            return Err("torque_sensor_offset");
-        }
-        if !self.torque_sensor_gain.iter().all(|v| pos(*v)) {
-            return Err("torque_sensor_gain");
-        }
-        if !self.speed_sensor_gain.iter().all(|v| pos(*v)) {
-            return Err("speed_sensor_gain");
-        }
-        if !self.current_sensor_gain.iter().all(|v| pos(*v)) {
-            return Err("current_sensor_gain");
-        }
-        let b = self.gear_backlash.backlash_deg;
-        if !(fin(b) && (0.0..=30.0).contains(&b)) {
-            return Err("gear_backlash");
-        }
-        let st = &self.stribeck_friction;
-        if !(fin(st.peak_nm) && st.peak_nm >= 0.0 && (st.peak_nm == 0.0 || pos(st.speed_rpm))) {
-            return Err("stribeck_friction");
-        }
-        let cd = &self.connector_drift;
-        if !(fin(cd.alpha_per_k)
-            && fin(cd.k_per_w)
-            && cd.k_per_w >= 0.0
-            && (cd.k_per_w == 0.0 || pos(cd.time_constant_s)))
-        {
-            return Err("connector_resistance_drift");
+    /// Check every parameter against its declared range; the first one refused.
+    pub fn check(&self) -> Result<(), Invalid> {
+        for e in EFFECTS {
+            for p in e.params {
+                // An unset override keeps the model's value, checked with the model.
+                let Ok(Some(v)) = self.get(e.id, p.name) else { continue };
+                let applies = match p.range.when_nonzero {
+                    Some(other) => self.get(e.id, other).ok().flatten().is_some_and(|o| o != 0.0),
+                    None => true,
+                };
+                if applies && !p.range.contains(v) {
+                    return Err(Invalid { effect: e, param: p, value: v });
+                }
+            }
         }
         Ok(())
+    }
+
+    /// Check ranges; returns the id of the first effect with an invalid parameter.
+    pub fn validate(&self) -> Result<(), &'static str> {
+        self.check().map_err(|e| e.effect.id)
     }
 }
 
@@ -228,111 +675,45 @@ pub enum EffectKeyError {
     UnknownParameter(&'static [&'static str]),
 }
 
-/// Every effect id, as used in effect files (the ids of [`EFFECT_PARAMS`]).
-pub fn effect_ids() -> impl Iterator<Item = &'static str> + Clone {
-    EFFECT_PARAMS.iter().map(|(id, _)| *id)
-}
-
-/// The parameter names of each effect, as written in effect files.
-pub const EFFECT_PARAMS: &[(&str, &[&str])] = &[
-    ("differential_friction", &["coulomb_nm", "viscous_nm_s_per_rad"]),
-    ("axle_friction_scale", &["left", "right"]),
-    ("controller_delay", &["delay_s"]),
-    ("inverter_rate_scale", &["accel_fwd", "decel_fwd", "accel_rev", "decel_rev"]),
-    ("coupling_stiffness", &["stiffness_nm_per_rad"]),
-    ("coupling_damping", &["damping_nm_s_per_rad"]),
-    ("inertia_scale", &["sut", "load_l", "load_r"]),
-    ("connector_resistance", &["resistance_ohm"]),
-    ("supply_resistance", &["resistance_ohm"]),
-    ("regen_efficiency", &["extra_loss"]),
-    ("torque_sensor_offset", &["left_nm", "right_nm"]),
-    ("torque_sensor_gain", &["left", "right"]),
-    ("speed_sensor_gain", &["sut_motor", "flange_l", "flange_r", "siemens"]),
-    ("current_sensor_gain", &["dpu", "dc", "xlml", "xlmr"]),
-    ("gear_backlash", &["backlash_deg"]),
-    ("stribeck_friction", &["peak_nm", "speed_rpm"]),
-    ("connector_resistance_drift", &["alpha_per_k", "k_per_w", "time_constant_s"]),
-];
-
-/// Where one effect parameter lives: a plain value, or an override of a model value.
-enum Slot<'a> {
-    Value(&'a mut f32),
-    Override(&'a mut Option<f32>),
-}
-
-impl Effects {
-    /// The storage of one parameter, by effect id and parameter name.
-    fn slot(&mut self, effect: &str, param: &str) -> Result<Slot<'_>, EffectKeyError> {
-        let names = EFFECT_PARAMS
-            .iter()
-            .find(|(id, _)| *id == effect)
-            .map(|(_, p)| *p)
-            .ok_or(EffectKeyError::UnknownEffect)?;
-        Ok(match (effect, param) {
-            ("differential_friction", "coulomb_nm") => {
-                Slot::Value(&mut self.differential_friction.coulomb_nm)
-            }
-            ("differential_friction", "viscous_nm_s_per_rad") => {
-                Slot::Value(&mut self.differential_friction.viscous_nm_s)
-            }
-            ("axle_friction_scale", "left") => Slot::Value(&mut self.axle_friction_scale[0]),
-            ("axle_friction_scale", "right") => Slot::Value(&mut self.axle_friction_scale[1]),
-            ("controller_delay", "delay_s") => Slot::Value(&mut self.controller_delay_s),
-            ("inverter_rate_scale", "accel_fwd") => Slot::Value(&mut self.inverter_rate_scale[0][0]),
-            ("inverter_rate_scale", "decel_fwd") => Slot::Value(&mut self.inverter_rate_scale[0][1]),
-            ("inverter_rate_scale", "accel_rev") => Slot::Value(&mut self.inverter_rate_scale[1][0]),
-            ("inverter_rate_scale", "decel_rev") => Slot::Value(&mut self.inverter_rate_scale[1][1]),
-            ("coupling_stiffness", "stiffness_nm_per_rad") => Slot::Override(&mut self.coupling_stiffness),
-            ("coupling_damping", "damping_nm_s_per_rad") => Slot::Override(&mut self.coupling_damping),
-            ("inertia_scale", "sut") => Slot::Value(&mut self.inertia_scale[0]),
-            ("inertia_scale", "load_l") => Slot::Value(&mut self.inertia_scale[1]),
-            ("inertia_scale", "load_r") => Slot::Value(&mut self.inertia_scale[2]),
-            ("connector_resistance", "resistance_ohm") => Slot::Override(&mut self.connector_resistance),
-            ("supply_resistance", "resistance_ohm") => Slot::Value(&mut self.supply_resistance),
-            ("regen_efficiency", "extra_loss") => Slot::Value(&mut self.regen_loss),
-            ("torque_sensor_offset", "left_nm") => Slot::Value(&mut self.torque_sensor_offset[0]),
-            ("torque_sensor_offset", "right_nm") => Slot::Value(&mut self.torque_sensor_offset[1]),
-            ("torque_sensor_gain", "left") => Slot::Value(&mut self.torque_sensor_gain[0]),
-            ("torque_sensor_gain", "right") => Slot::Value(&mut self.torque_sensor_gain[1]),
-            ("speed_sensor_gain", "sut_motor") => Slot::Value(&mut self.speed_sensor_gain[0]),
-            ("speed_sensor_gain", "flange_l") => Slot::Value(&mut self.speed_sensor_gain[1]),
-            ("speed_sensor_gain", "flange_r") => Slot::Value(&mut self.speed_sensor_gain[2]),
-            ("speed_sensor_gain", "siemens") => Slot::Value(&mut self.speed_sensor_gain[3]),
-            ("current_sensor_gain", "dpu") => Slot::Value(&mut self.current_sensor_gain[0]),
-            ("current_sensor_gain", "dc") => Slot::Value(&mut self.current_sensor_gain[1]),
-            ("current_sensor_gain", "xlml") => Slot::Value(&mut self.current_sensor_gain[2]),
-            ("current_sensor_gain", "xlmr") => Slot::Value(&mut self.current_sensor_gain[3]),
-            ("gear_backlash", "backlash_deg") => Slot::Value(&mut self.gear_backlash.backlash_deg),
-            ("stribeck_friction", "peak_nm") => Slot::Value(&mut self.stribeck_friction.peak_nm),
-            ("stribeck_friction", "speed_rpm") => Slot::Value(&mut self.stribeck_friction.speed_rpm),
-            ("connector_resistance_drift", "alpha_per_k") => {
-                Slot::Value(&mut self.connector_drift.alpha_per_k)
-            }
-            ("connector_resistance_drift", "k_per_w") => Slot::Value(&mut self.connector_drift.k_per_w),
-            ("connector_resistance_drift", "time_constant_s") => {
-                Slot::Value(&mut self.connector_drift.time_constant_s)
-            }
-            _ => return Err(EffectKeyError::UnknownParameter(names)),
-        })
+impl EffectKeyError {
+    /// The message for this error on `effect`.`param`, naming the accepted vocabulary.
+    pub fn describe<'a>(self, effect: &'a str, param: &'a str) -> KeyErrorText<'a> {
+        KeyErrorText { error: self, effect, param }
     }
+}
 
-    /// Set one parameter by effect id and parameter name (the effect-file vocabulary).
-    /// Range checks happen in [`Effects::validate`], once every parameter is set.
-    pub fn set(&mut self, effect: &str, param: &str, v: f32) -> Result<(), EffectKeyError> {
-        match self.slot(effect, param)? {
-            Slot::Value(s) => *s = v,
-            Slot::Override(s) => *s = Some(v),
+/// [`EffectKeyError`] with the names it was given, for messages.
+#[derive(Debug, Clone, Copy)]
+pub struct KeyErrorText<'a> {
+    error: EffectKeyError,
+    effect: &'a str,
+    param: &'a str,
+}
+
+/// `a`, `b`: back-quoted names.
+fn write_list<'a>(f: &mut fmt::Formatter<'_>, names: impl Iterator<Item = &'a str>) -> fmt::Result {
+    for (i, n) in names.enumerate() {
+        write!(f, "{}`{n}`", if i > 0 { ", " } else { "" })?;
+    }
+    Ok(())
+}
+
+impl fmt::Display for KeyErrorText<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.error {
+            EffectKeyError::UnknownEffect => {
+                write!(f, "unknown effect `{}`; known effects: ", self.effect)?;
+                write_list(f, effect_ids())
+            }
+            EffectKeyError::UnknownParameter(names) => {
+                write!(f, "[{}]: unknown parameter `{}`; accepted: ", self.effect, self.param)?;
+                write_list(f, names.iter().copied())
+            }
         }
-        Ok(())
     }
+}
 
-    /// One parameter's value; `None` for an override that is not set (the model's own
-    /// value applies).
-    pub fn get(&self, effect: &str, param: &str) -> Result<Option<f32>, EffectKeyError> {
-        let mut copy = *self;
-        Ok(match copy.slot(effect, param)? {
-            Slot::Value(s) => Some(*s),
-            Slot::Override(s) => *s,
-        })
-    }
+/// Every effect id, as used in effect files.
+pub fn effect_ids() -> impl Iterator<Item = &'static str> + Clone {
+    EFFECTS.iter().map(|e| e.id)
 }

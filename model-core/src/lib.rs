@@ -12,9 +12,10 @@
 //! - [`throttle`]: set point -> voltage -> mapped throttle -> target speed.
 //! - [`curtis`]: the Curtis rate logic.
 //! - [`controller`]: PID speed controller with torque/power limits.
+//! - [`delay`]: the controller-delay line.
 //! - [`drivetrain`]: mechanics, discretized exactly (see there for the 2 kHz flange mode).
 //! - [`electrics`]: supply, connector, power maps, rate limiters.
-//! - [`effects`]: physical effects beyond the thesis, off by default.
+//! - [`effects`]: physical effects beyond the thesis, off by default, each declared once.
 //! - [`outputs`]: the bench's channels.
 //! - [`data`]: the maps and parameters, compiled into flash from `data/` by `build.rs`.
 //!
@@ -33,6 +34,7 @@ pub mod backlash;
 pub mod controller;
 pub mod curtis;
 pub mod data;
+pub mod delay;
 pub mod drivetrain;
 pub mod effects;
 pub mod electrics;

@@ -1,12 +1,19 @@
 //! The twin: configuration, state, and the fixed-step `step`.
+//!
+//! Configuration apart from state (as quartiq/idsp does): [`Model::with_maps`] computes
+//! every coefficient once into `Coeffs` (discretizations, the PID's filter weight, the
+//! blocks' constants); `State` holds what the step changes. Each stateful block (PID,
+//! delay line, backlash, connector thermal drift) is a constants struct with a method
+//! taking its own state struct, called from one place in [`Model::step`].
 
-use crate::backlash::Backlash;
-use crate::controller::Pid;
+use crate::backlash::{Backlash, BacklashState};
+use crate::controller::{PidConfig, PidState};
 use crate::curtis::{self, RateCase};
 use crate::data::Maps;
+use crate::delay::{Delay, DelayState};
 use crate::drivetrain::{SideDisc, SideParams, NS, PHI_AF, RAD_S_PER_RPM, RPM_PER_RAD_S, W_A, W_F, W_L};
-use crate::effects::{Effects, DELAY_CAPACITY};
-use crate::electrics::{connector, RateLimiter};
+use crate::effects::Effects;
+use crate::electrics::{connector, ConnectorThermal, RateLimiter, ThermalState};
 use crate::outputs::{Channel as C, Outputs};
 use crate::params::{Params, SpeedTarget};
 use crate::profile::SetPoints;
@@ -111,10 +118,9 @@ struct StepSignals {
     i_ld: [f32; 2],
 }
 
-/// The model state: one fixed-size struct, no heap.
+/// Everything the step reads but never changes, computed once at construction.
 #[derive(Debug, Clone)]
-pub struct Model<'a> {
-    maps: Maps<'a>,
+struct Coeffs {
     /// All 2-D maps share one grid: locate each set point once per step.
     shared_grid: bool,
     p: Params,
@@ -126,14 +132,20 @@ pub struct Model<'a> {
     disc: [SideDisc; 2],
     /// Discretization with the motor share removed (gears apart); only with backlash.
     disc_free: [SideDisc; 2],
-    r_conn: f32,
-    /// Backward-Euler weight of the connector's thermal lag (0: no drift).
-    drift_weight: f32,
-    // --- state ---
+    pid: PidConfig,
+    delay: Delay,
+    backlash: Backlash,
+    /// Connector resistance and its thermal drift.
+    connector: ConnectorThermal,
+}
+
+/// Everything the step changes: one fixed-size struct, no heap.
+#[derive(Debug, Clone)]
+struct State {
     x: [[f32; NS]; 2],
     /// Low parts of the compensated state (see `drivetrain`).
     x_lo: [[f32; NS]; 2],
-    pid: Pid,
+    pid: PidState,
     cmd_rpm: f32,
     /// Low part of the compensated speed command.
     cmd_lo: f32,
@@ -141,15 +153,21 @@ pub struct Model<'a> {
     /// The mapped mechanical power, through the same rate limiter as the SuT power map.
     p_mech_ref: RateLimiter,
     p_load: [RateLimiter; 2],
-    delay: [f32; DELAY_CAPACITY],
-    delay_len: usize,
-    delay_pos: usize,
+    delay: DelayState,
+    backlash: BacklashState,
+    /// Connector temperature (`connector_resistance_drift`).
+    thermal: ThermalState,
     t_us: u64,
-    backlash: Backlash,
     /// Search hints for the table lookups (see `table::locate_hinted`).
     hints: Hints,
-    /// [K] connector temperature rise (`connector_resistance_drift`).
-    conn_dtemp: f32,
+}
+
+/// The twin: maps, coefficients and state.
+#[derive(Debug, Clone)]
+pub struct Model<'a> {
+    maps: Maps<'a>,
+    c: Coeffs,
+    s: State,
     /// Called at each block boundary of the step (feature `profile-hooks`).
     #[cfg(feature = "profile-hooks")]
     probe: crate::probe::Probe,
@@ -218,38 +236,43 @@ impl<'a> Model<'a> {
         } else {
             disc
         };
-        let cd = fx.connector_drift;
-        let drift_weight =
-            if cd.k_per_w > 0.0 { (dt_s / (f64::from(cd.time_constant_s) + dt_s)) as f32 } else { 0.0 };
-        let delay_steps = (f64::from(fx.controller_delay_s) / dt_s + 0.5) as usize;
-        Ok(Self {
+        let backlash = Backlash::new(gap_rad, j_m, j_side_free);
+        let dt = dt_s as f32;
+        let r_conn = fx.connector_resistance.unwrap_or(p.connector_resistance);
+        let c = Coeffs {
             shared_grid: maps.shared_2d_grid(),
-            maps,
             p: *p,
             fx: *fx,
             mode: cfg.speed_target,
             dt_us: cfg.dt_us,
-            dt: dt_s as f32,
+            dt,
             side,
             disc,
             disc_free,
-            drift_weight,
-            r_conn: fx.connector_resistance.unwrap_or(p.connector_resistance),
+            pid: PidConfig::new(p, dt),
+            delay: Delay::new(fx.controller_delay_s, dt_s),
+            backlash,
+            connector: ConnectorThermal::new(r_conn, &fx.connector_drift, dt_s),
+        };
+        let s = State {
             x: [[0.0; NS]; 2],
             x_lo: [[0.0; NS]; 2],
-            pid: Pid::default(),
+            pid: PidState::default(),
             cmd_rpm: 0.0,
             cmd_lo: 0.0,
             p_sut: RateLimiter::default(),
             p_mech_ref: RateLimiter::default(),
             p_load: [RateLimiter::default(); 2],
-            delay: [0.0; DELAY_CAPACITY],
-            delay_len: delay_steps.min(DELAY_CAPACITY),
-            delay_pos: 0,
+            delay: DelayState::default(),
+            backlash: backlash.initial(),
+            thermal: ThermalState::default(),
             t_us: 0,
-            backlash: Backlash::new(gap_rad, j_m, j_side_free),
-            conn_dtemp: 0.0,
             hints: Hints::default(),
+        };
+        Ok(Self {
+            maps,
+            c,
+            s,
             #[cfg(feature = "profile-hooks")]
             probe: crate::probe::none,
         })
@@ -264,22 +287,22 @@ impl<'a> Model<'a> {
 
     /// Step [µs].
     pub fn dt_us(&self) -> u32 {
-        self.dt_us
+        self.c.dt_us
     }
 
     /// Time reached [µs].
     pub fn t_us(&self) -> u64 {
-        self.t_us
+        self.s.t_us
     }
 
     /// Parameters in use.
     pub fn params(&self) -> &Params {
-        &self.p
+        &self.c.p
     }
 
     /// Per-side mechanical parameters in use (after effects).
     pub fn side_params(&self) -> &[SideParams; 2] {
-        &self.side
+        &self.c.side
     }
 
     /// Where a throttle / load set point falls on the shared grid (if there is one).
@@ -293,36 +316,13 @@ impl<'a> Model<'a> {
         Query { v, loc }
     }
 
-    /// A 2-D map at (throttle, load) set points.
-    #[inline]
-    fn map2(&self, t: &Table2<'a>, thr: Query, load: Query) -> f32 {
-        if self.shared_grid {
-            t.eval_loc(thr.loc, load.loc)
-        } else {
-            t.eval(thr.v, load.v)
-        }
-    }
-
-    /// The throttle as the controller sees it, after the `controller_delay` effect.
-    fn delayed_throttle(&mut self, v: f32) -> f32 {
-        if self.delay_len == 0 {
-            return v;
-        }
-        let pos = self.delay_pos;
-        let out = self.delay.get(pos).copied().unwrap_or(v);
-        if let Some(slot) = self.delay.get_mut(pos) {
-            *slot = v;
-        }
-        self.delay_pos = if pos + 1 >= self.delay_len { 0 } else { pos + 1 };
-        out
-    }
-
     /// Advance one step with set points held over it; returns the outputs at the end.
     pub fn step(&mut self, inp: &Inputs) -> Outputs {
         probe!(self, RateLogic);
-        let p = self.p;
-        let fx = self.fx;
-        let dt = self.dt;
+        let (c, s) = (&self.c, &mut self.s);
+        let p = c.p;
+        let fx = c.fx;
+        let dt = c.dt;
         let finite_pct = |v: f32| {
             if v.is_finite() {
                 v.clamp(-100.0, 100.0)
@@ -332,9 +332,9 @@ impl<'a> Model<'a> {
         };
         let thr_sp = finite_pct(inp.sp.throttle_pct);
         let load_sp = [finite_pct(inp.sp.load_pct[0]), finite_pct(inp.sp.load_pct[1])];
-        let (sg, grid) = (self.shared_grid, self.maps.sut_power);
+        let (sg, grid) = (c.shared_grid, self.maps.sut_power);
         probe!(self, Tables);
-        let h = &mut self.hints;
+        let h = &mut s.hints;
         let q_thr = Self::query(sg, &grid, thr_sp, true, &mut h.thr);
         let q_load = [
             Self::query(sg, &grid, load_sp[0], false, &mut h.load[0]),
@@ -343,37 +343,33 @@ impl<'a> Model<'a> {
 
         // Throttle chain and Curtis rate logic.
         probe!(self, RateLogic);
-        let thr_ctl = self.delayed_throttle(thr_sp);
+        let thr_ctl = c.delay.apply(&mut s.delay, thr_sp);
         probe!(self, Tables);
-        let mapped = self
-            .maps
-            .throttle_input
-            .eval_hinted(throttle::voltage(&p, thr_ctl), &mut self.hints.throttle_input);
-        let target =
-            throttle::target_speed_rpm(&self.maps, &p, self.mode, mapped, thr_ctl, &mut self.hints.speed);
+        let mapped =
+            self.maps.throttle_input.eval_hinted(throttle::voltage(&p, thr_ctl), &mut s.hints.throttle_input);
+        let target = throttle::target_speed_rpm(&self.maps, &p, c.mode, mapped, thr_ctl, &mut s.hints.speed);
         probe!(self, RateLogic);
         let n = p.sut_gear_ratio;
-        let [xl, xr] = self.x;
+        let [xl, xr] = s.x;
         let w_case = 0.5 * (xl[W_A] + xr[W_A]);
-        let w_motor = n * self.backlash.motor_speed(w_case);
+        let w_motor = n * s.backlash.motor_speed(w_case);
         let (rate, case) = curtis::ramp_rate(
             &p,
             &fx.inverter_rate_scale,
             mapped,
             target,
-            self.cmd_rpm,
+            s.cmd_rpm,
             w_motor * RPM_PER_RAD_S,
         );
-        (self.cmd_rpm, self.cmd_lo) =
-            curtis::advance_compensated(self.cmd_rpm, self.cmd_lo, target, rate, dt);
+        (s.cmd_rpm, s.cmd_lo) = curtis::advance_compensated(s.cmd_rpm, s.cmd_lo, target, rate, dt);
 
         // Speed controller -> motor torque -> gearbox -> open differential.
         probe!(self, Controller);
-        let t_motor = self.pid.update(&p, self.cmd_rpm * RAD_S_PER_RPM, w_motor, dt);
+        let t_motor = s.pid.update(&c.pid, s.cmd_rpm * RAD_S_PER_RPM, w_motor);
         let df = fx.differential_friction;
         let t_diff = df.coulomb_nm * (w_case / DIFF_FRICTION_EPS).clamp(-1.0, 1.0) + df.viscous_nm_s * w_case;
-        let t_in = 0.5 * (self.backlash.case_torque(n * t_motor) - t_diff);
-        let discs = if self.backlash.is_free() { &self.disc_free } else { &self.disc };
+        let t_in = 0.5 * (s.backlash.case_torque(n * t_motor) - t_diff);
+        let discs = if s.backlash.is_free() { &c.disc_free } else { &c.disc };
 
         // Per side: friction and load motor at the load node, exact linear update.
         probe!(self, Mechanics);
@@ -384,12 +380,12 @@ impl<'a> Model<'a> {
         // at the load-side speeds (see `unmapped power` below).
         let mut p_mapped_mech = 0.0f32;
         for (i, (((x, x_lo), disc), tl)) in
-            self.x.iter_mut().zip(self.x_lo.iter_mut()).zip(discs.iter()).zip(t_load.iter_mut()).enumerate()
+            s.x.iter_mut().zip(s.x_lo.iter_mut()).zip(discs.iter()).zip(t_load.iter_mut()).enumerate()
         {
             let w_l = x[W_L];
             let w_rpm = w_l * RPM_PER_RAD_S;
             probe!(self, Tables);
-            let hint = &mut self.hints.friction[i];
+            let hint = &mut s.hints.friction[i];
             let fric_nominal = self.maps.friction[i].eval_hinted(w_rpm, hint);
             probe!(self, Mechanics);
             let mut fric = fric_nominal * fx.axle_friction_scale[i];
@@ -399,7 +395,7 @@ impl<'a> Model<'a> {
                 fric += st.peak_nm * micromath::F32(-(r * r)).exp().0 * (w_rpm / 0.5).clamp(-1.0, 1.0);
             }
             probe!(self, Tables);
-            let t_map = match (self.shared_grid, q_load.get(i)) {
+            let t_map = match (c.shared_grid, q_load.get(i)) {
                 (true, Some(q)) => self.maps.load_torque[i].eval_loc(q_thr.loc, q.loc),
                 _ => self.maps.load_torque[i].eval(thr_sp, load_sp[i]),
             };
@@ -420,8 +416,8 @@ impl<'a> Model<'a> {
             disc.step_compensated(x, x_lo, [t_in, fric + *tl]);
         }
 
-        if self.backlash.enabled() {
-            self.backlash.after_step(n * t_motor, w_case, &mut self.x, dt);
+        if c.backlash.enabled() {
+            c.backlash.after_step(&mut s.backlash, n * t_motor, w_case, &mut s.x, dt);
         }
 
         // Electrics: maps -> rate limiters -> currents; supply current is the sum.
@@ -434,15 +430,15 @@ impl<'a> Model<'a> {
                 pw
             }
         };
-        let q_mean = Self::query(self.shared_grid, &grid, load_mean, false, &mut self.hints.load_mean);
-        let sut_map = self.map2(&self.maps.sut_power, q_thr, q_mean);
+        let q_mean = Self::query(c.shared_grid, &grid, load_mean, false, &mut s.hints.load_mean);
+        let sut_map = map2(c.shared_grid, &self.maps.sut_power, q_thr, q_mean);
         let load_map = [
-            self.map2(&self.maps.load_power[0], q_thr, q_load[0]),
-            self.map2(&self.maps.load_power[1], q_thr, q_load[1]),
+            map2(c.shared_grid, &self.maps.load_power[0], q_thr, q_load[0]),
+            map2(c.shared_grid, &self.maps.load_power[1], q_thr, q_load[1]),
         ];
         let i_phase = [
-            self.map2(&self.maps.load_current[0], q_thr, q_load[0]),
-            self.map2(&self.maps.load_current[1], q_thr, q_load[1]),
+            map2(c.shared_grid, &self.maps.load_current[0], q_thr, q_load[0]),
+            map2(c.shared_grid, &self.maps.load_current[1], q_thr, q_load[1]),
         ];
         probe!(self, Electrics);
         // Unmapped power: the SuT power map is a steady-state identity of the set points.
@@ -452,24 +448,20 @@ impl<'a> Model<'a> {
         // the thesis model, so the identified map is reproduced exactly there.
         // The reference moves through the map's rate limiter: a load step changes the map
         // and its mechanical counterpart together, not one instantly and one slowly.
-        let p_ref = self.p_mech_ref.update(p_mapped_mech, p.sut_power_rate_w_per_s * dt);
+        let p_ref = s.p_mech_ref.update(p_mapped_mech, p.sut_power_rate_w_per_s * dt);
         let p_unmapped = t_motor * w_motor - p_ref;
         let p_unmapped_el = if p_unmapped > 0.0 {
             p_unmapped / p.sut_drive_efficiency
         } else {
             p_unmapped * p.sut_drive_efficiency
         };
-        let p_sut = regen(self.p_sut.update(sut_map, p.sut_power_rate_w_per_s * dt) + p_unmapped_el);
+        let p_sut = regen(s.p_sut.update(sut_map, p.sut_power_rate_w_per_s * dt) + p_unmapped_el);
         let mut p_ld = [0.0f32; 2];
-        for ((pl, lim), m) in p_ld.iter_mut().zip(self.p_load.iter_mut()).zip(load_map) {
+        for ((pl, lim), m) in p_ld.iter_mut().zip(s.p_load.iter_mut()).zip(load_map) {
             *pl = regen(lim.update(m, p.load_power_rate_w_per_s * dt));
         }
         let v_s = inp.supply_v;
-        let r_conn = if self.drift_weight > 0.0 {
-            self.r_conn * (1.0 + fx.connector_drift.alpha_per_k * self.conn_dtemp)
-        } else {
-            self.r_conn
-        };
+        let r_conn = c.connector.resistance(&s.thermal);
         // Currents drawn at busbar voltage `v`: the SuT through the connector, the loads
         // directly.
         let draw = |v: f32| {
@@ -487,12 +479,9 @@ impl<'a> Model<'a> {
         }
         let (sol, i_ld) = draw(v_b);
         let (i_dc, v_dc, _) = sol;
-        if self.drift_weight > 0.0 {
-            let heat = fx.connector_drift.k_per_w * i_dc * i_dc * r_conn;
-            self.conn_dtemp += self.drift_weight * (heat - self.conn_dtemp);
-        }
+        c.connector.after_step(&mut s.thermal, i_dc, r_conn);
 
-        self.t_us += u64::from(self.dt_us);
+        s.t_us += u64::from(c.dt_us);
         probe!(self, Outputs);
         self.outputs(&StepSignals {
             thr_sp,
@@ -525,11 +514,11 @@ impl<'a> Model<'a> {
             v_dc,
             i_ld,
         } = *sig;
-        let p = &self.p;
-        let fx = &self.fx;
-        let [xl, xr] = self.x;
+        let p = &self.c.p;
+        let fx = &self.c.fx;
+        let [xl, xr] = self.s.x;
         let flange = |x: &[f32; NS], s: &SideParams| s.k_f * x[PHI_AF] + s.c_f * (x[W_A] - x[W_F]);
-        let [sl, sr] = &self.side;
+        let [sl, sr] = &self.c.side;
         let tq = [flange(&xl, sl), flange(&xr, sr)];
         let sg = fx.speed_sensor_gain;
         let cg = fx.current_sensor_gain;
@@ -544,7 +533,7 @@ impl<'a> Model<'a> {
         let i_xlml = 0.5 * i_ld[0] * cg[2];
         let i_xlmr = 0.5 * i_ld[1] * cg[3];
 
-        let mut o = Outputs { t_us: self.t_us, ..Outputs::default() };
+        let mut o = Outputs { t_us: self.s.t_us, ..Outputs::default() };
         o.set(C::Throttle, throttle::voltage(p, thr_sp));
         o.set(C::SuTMotorEnc, motor_rpm * sg[0]);
         o.set(C::CKistlerL, c_l);
@@ -574,7 +563,7 @@ impl<'a> Model<'a> {
         o.set(C::LoadRSp, load_sp[1]);
         o.set(C::ThrottleMapped, mapped);
         o.set(C::SpeedTarget, target);
-        o.set(C::SpeedCmd, self.cmd_rpm);
+        o.set(C::SpeedCmd, self.s.cmd_rpm);
         o.set(C::RateCase, f32::from(case as u8));
         o.set(C::SuTTorque, t_motor);
         o.set(C::LoadTorqueL, t_load[0]);
@@ -584,5 +573,16 @@ impl<'a> Model<'a> {
         o.set(C::LoadSpeedL, xl[W_L] * RPM_PER_RAD_S * p.load_gear_ratio);
         o.set(C::LoadSpeedR, xr[W_L] * RPM_PER_RAD_S * p.load_gear_ratio);
         o
+    }
+}
+
+/// A 2-D map at (throttle, load) set points: on the located grid cells when all maps
+/// share one grid, else by its own search.
+#[inline]
+fn map2(shared_grid: bool, t: &Table2<'_>, thr: Query, load: Query) -> f32 {
+    if shared_grid {
+        t.eval_loc(thr.loc, load.loc)
+    } else {
+        t.eval(thr.v, load.v)
     }
 }

@@ -44,6 +44,8 @@ pub fn locate(x: &[f32], q: f32) -> Loc {
     let n = x.len();
     let first = x.first().copied().unwrap_or(0.0);
     let last = x.last().copied().unwrap_or(0.0);
+    // Not `q <= first`: NaN must take this branch too.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     if !(q > first) || n < 2 {
         return (0, 0.0);
     }

@@ -44,3 +44,101 @@ fn validate_names_the_bad_effect() {
     fx.set("regen_efficiency", "extra_loss", 1.5).unwrap();
     assert_eq!(fx.validate(), Err("regen_efficiency"));
 }
+
+/// Every declared effect has a row in docs/MODEL.md's effect table naming its
+/// parameters and saying whether diagnose may propose it.
+#[test]
+fn effects_are_documented() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/MODEL.md");
+    let doc = std::fs::read_to_string(path).unwrap();
+    for e in EFFECTS {
+        let row = doc
+            .lines()
+            .find(|l| l.starts_with(&format!("| `{}` |", e.id)))
+            .unwrap_or_else(|| panic!("{} has no row in the effect table of {path}", e.id));
+        for p in e.params {
+            assert!(
+                row.contains(&format!("`{}`", p.name)),
+                "{}.{} missing from its row: {row}",
+                e.id,
+                p.name
+            );
+        }
+        let in_lib = row.trim_end().trim_end_matches('|').trim_end().ends_with("| yes");
+        assert_eq!(in_lib, e.in_library(), "{}: the table's diagnose-library column is wrong", e.id);
+    }
+}
+
+/// The declarations are consistent: the library is exactly the effects with a proof
+/// case; a proof hides a declared parameter inside its range; fit bounds hold the
+/// neutral value and lie within what the model accepts.
+#[test]
+fn declarations_are_consistent() {
+    let p = model_core::Params::default();
+    assert_eq!(LIBRARY.len(), EFFECTS.iter().filter(|e| e.proof.is_some()).count());
+    for e in EFFECTS {
+        assert_eq!(e.in_library(), e.proof.is_some(), "{}: a proof case exactly for library effects", e.id);
+        assert!(
+            e.params.iter().all(|d| d.fit.is_some()) || e.params.iter().all(|d| d.fit.is_none()),
+            "{}",
+            e.id
+        );
+        if let Some(pr) = e.proof {
+            let d = e.param(pr.param).unwrap_or_else(|| panic!("{}: proof hides unknown {}", e.id, pr.param));
+            assert!(pr.lo < pr.hi && d.range.contains(pr.lo) && d.range.contains(pr.hi), "{}", e.id);
+        }
+        for d in e.params {
+            let neutral = d.neutral(e.id, &p);
+            if d.range.when_nonzero.is_none() {
+                assert!(d.range.contains(neutral), "{}.{}: neutral {neutral} refused", e.id, d.name);
+            }
+            assert_eq!(d.model.is_some(), Effects::NONE.get(e.id, d.name) == Ok(None), "{}.{}", e.id, d.name);
+            if let Some(f) = d.fit {
+                let (lo, hi) = (f.lower as f32, f.upper as f32);
+                assert!(
+                    f.lower <= f64::from(neutral) && f64::from(neutral) <= f.upper,
+                    "{}.{}",
+                    e.id,
+                    d.name
+                );
+                assert!(
+                    d.range.contains(lo) && d.range.contains(hi),
+                    "{}.{}: fit bounds outside range",
+                    e.id,
+                    d.name
+                );
+                assert!(f.delta(f64::from(neutral)) > 0.0, "{}.{}", e.id, d.name);
+            }
+        }
+    }
+}
+
+#[test]
+fn check_names_the_parameter_and_its_range() {
+    let mut fx = Effects::NONE;
+    fx.set("supply_resistance", "resistance_ohm", 2.0).unwrap();
+    let bad = fx.check().unwrap_err();
+    assert_eq!(
+        bad.to_string(),
+        "[supply_resistance]: resistance_ohm = 2 is invalid: resistance_ohm must be in [0, 1)"
+    );
+    assert_eq!(
+        effect("connector_resistance_drift").unwrap().constraint().to_string(),
+        "alpha_per_k must be finite; k_per_w must be finite and >= 0; \
+         time_constant_s must be finite and > 0 when k_per_w is not 0"
+    );
+    // A range that depends on a sibling holds only while the sibling is on.
+    let mut fx = Effects::NONE;
+    fx.set("stribeck_friction", "speed_rpm", -1.0).unwrap();
+    assert_eq!(fx.validate(), Ok(()));
+    fx.set("stribeck_friction", "peak_nm", 0.5).unwrap();
+    assert_eq!(fx.validate(), Err("stribeck_friction"));
+    assert_eq!(
+        EffectKeyError::UnknownParameter(&["delay_s"]).describe("controller_delay", "delay").to_string(),
+        "[controller_delay]: unknown parameter `delay`; accepted: `delay_s`"
+    );
+    assert!(EffectKeyError::UnknownEffect
+        .describe("warp", "")
+        .to_string()
+        .starts_with("unknown effect `warp`; known effects: `differential_friction`, `axle_friction_scale`"));
+}

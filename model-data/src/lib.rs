@@ -5,8 +5,13 @@
 //! one accepts the other accepts, with the same messages. Dependency-free: it is a
 //! build-dependency of the target crate.
 //!
+//! [`effects`] is the effect-file format, shared the same way by the firmware's
+//! `build.rs` (`$SIMROD_EFFECTS`) and the workbench (`--effects`).
+//!
 //! Errors carry the 1-based line (0 for the whole file) and what was expected; the
 //! callers add the file name.
+
+pub mod effects;
 
 /// Most sets a profile may have (the PLC's limit, thesis 4.1).
 pub const MAX_SETS: usize = 10;
@@ -88,9 +93,9 @@ pub enum Mode {
 /// One row of a profile file.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProfileRow {
-    /// [s] > 0.
+    /// Duration \[s\], > 0.
     pub duration_s: f32,
-    /// [%] set points throttle, load L, load R, each in [-100, 100].
+    /// Set points \[%\]: throttle, load L, load R, each in [-100, 100].
     pub set_points: [f32; 3],
     /// Throttle mode, load mode.
     pub modes: [Mode; 2],

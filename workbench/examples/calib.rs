@@ -15,7 +15,7 @@ fn main() {
         let mut run = bench_run(&truth, profile, seed);
         if white {
             // Replace the bench's chain by white Gaussian noise of the same base levels.
-            run.twin.speed_window_s = 0.0;
+            run.twin.twin.model.sensors = workbench::twin::SensorModel::NONE;
             let clean = run.twin.run(&truth).unwrap();
             let sig = [3.0, 0.3, 0.3, 3.0, 3.0, 1.5, 0.5, 0.5, 0.5, 1.0, 0.05, 0.1, 0.02];
             let mut s: u64 = seed * 7919;
@@ -31,7 +31,7 @@ fn main() {
                     *x = f64::from(*y) + sg * g;
                 }
             }
-            run.twin.speed_window_s = 0.0;
+            run.twin.twin.model.sensors = workbench::twin::SensorModel::NONE;
         }
         let d = diagnose_run(&run, &model_core::Effects::NONE).unwrap();
         let c = d.ranking.iter().find(|c| c.effect == e).unwrap();

@@ -1,8 +1,9 @@
 //! Exploratory: hide effects in a virtual-bench run (realistic measurement chain) and
 //! diagnose blind. `PROFILE=TP07 SEED=1 cargo run --release -p workbench --example diag_probe -- effect param value ...`
-use model_core::{Builtin, Config, Effects, Inputs, Profile, SetPoints, Simulation};
+use model_core::{Builtin, Config, Effects, Profile, Simulation};
 use std::time::Instant;
 use workbench::diagnose::{self, twin::*, Options};
+use workbench::twin::{InputSource, MeasuredTwin, ModelOptions, SensorModel};
 use workbench::vbench::chain::{measure, ChainOptions, Recorded};
 use workbench::vbench::noise::NoiseModel;
 
@@ -23,19 +24,14 @@ fn main() {
     let m = measure(&rec, &ChainOptions { noise, seed, miscount: false }, std::path::Path::new("x.csv"));
     let channels = fitted_channels();
     let meas: Vec<Vec<f64>> = channels.iter().map(|c| m.signal(c.name()).unwrap().values.clone()).collect();
-    let inputs: Vec<Inputs> = (0..rec.t_us.len())
-        .map(|k| Inputs {
-            sp: SetPoints {
-                throttle_pct: rec.setpoints[0][k],
-                load_pct: [rec.setpoints[1][k], rec.setpoints[2][k]],
-            },
-            supply_v: 24.0,
-        })
-        .collect();
     let win: f64 = env("WIN", "0.1").parse().unwrap();
-    let twin = RecordedTwin { config: cfg, inputs, channels: channels.clone(), speed_window_s: win };
+    let model = ModelOptions { sensors: SensorModel::counting(win), ..ModelOptions::default() };
+    let twin = RecordedTwin {
+        twin: MeasuredTwin::new(&m, &model, &InputSource::Recorded).unwrap(),
+        channels: channels.clone(),
+    };
     let t0 = Instant::now();
-    let probe = BuiltinProbe::standard(cfg, channels, win);
+    let probe = BuiltinProbe::standard(model, channels);
     let d = diagnose::diagnose(&twin, &meas, &Options::default(), Some(&probe)).unwrap();
     println!("{:.2} s  ratio {:.2}\n{}", t0.elapsed().as_secs_f64(), d.excess_ratio, d.verdict);
     for c in d.ranking.iter().take(4) {

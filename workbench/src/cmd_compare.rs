@@ -23,7 +23,8 @@ use crate::history::{self, Entry};
 use crate::iterate;
 use crate::measure::{self, LoadOptions, Mapping};
 use crate::report::{html, json, table};
-use crate::simulate::{parse_builtin, parse_scale, parse_supply_v, CouplingArg, RatesArg, SpeedTargetArg};
+use crate::simulate::{parse_builtin, parse_scale};
+use crate::twin::args::{ModelArgs, SensorArgs};
 
 /// What `simrod compare --help` explains after the options.
 const HOW: &str = "\
@@ -34,8 +35,14 @@ How the comparison is made:
             drives it from a built-in profile instead (profile time = row time - one step).
   Step      the file's sample interval when it is a whole number of µs in 10..=10000 µs and
             uniform; otherwise the file is resampled (linear) to 1 ms and the twin runs at 1 ms.
-  Residual  sim - meas. NRMSE = RMSE / (max - min of the measurement, at least 1 % of its RMS).
-            fit = 100 (1 - |e| / |y - mean y|); r2 = 1 - sum e^2 / sum (y - mean y)^2.
+  Sensors   the twin's speeds are recorded as the bench records them: averaged over the encoder
+            counting window (--speed-window-s, 0.1 s; 0 for files whose speeds are not counted).
+            `simrod diagnose` runs the same twin on the same file with the same flags.
+  Residual  sim - meas. NRMSE = RMSE / the measured range (max - min), or a tenth of the channel's
+            operating span (workbench/data/channel_spans.toml) when the run moves it less
+            (column norm.: range or span/10). fit = 100 (1 - |e| / |y - mean y|) and
+            r2 = 1 - sum e^2 / sum (y - mean y)^2, only where the range normalises.
+            Headlines (worst channel, region, span) name only residuals with structure.
   Regions   from measured/commanded signals: accelerating / decelerating / steady (slope of the
             0.1 s-smoothed |SuTMotorEnc| beyond +-50 rpm/s); forward / reverse (throttle sign,
             else speed sign); loads motoring / regenerating / unloaded (mean load set point
@@ -54,38 +61,19 @@ pub struct CompareArgs {
     #[arg(value_name = "MEAS")]
     pub meas: PathBuf,
 
-    /// Effect file (TOML) switching on effects in the twin.
-    #[arg(long, value_name = "FILE.toml")]
-    pub effects: Option<PathBuf>,
+    #[command(flatten)]
+    pub model: ModelArgs,
 
-    /// Curtis rate parameters of the twin: programmed (table 5.16) or identified (5.17).
-    #[arg(long, value_enum, default_value_t = RatesArg::Identified)]
-    pub params: RatesArg,
-
-    /// Target speed from the identified map, or from the Max Speed parameter.
-    #[arg(long, value_enum, default_value_t = SpeedTargetArg::Map)]
-    pub speed_target: SpeedTargetArg,
-
-    /// Coupling stiffness: identified (4369 N m/rad) or datasheet (10310 N m/rad).
-    #[arg(long, value_enum, default_value_t = CouplingArg::Identified)]
-    pub coupling: CouplingArg,
+    #[command(flatten)]
+    pub sensors: SensorArgs,
 
     /// Mapping file (TOML) renaming/scaling the file's channels to bench names.
     #[arg(long, value_name = "FILE")]
     pub mapping: Option<PathBuf>,
 
-    /// Model data directory (parameters.toml + CSV maps, the format of model-core/data)
-    /// for the twin instead of the built-in data: an altered or identified model.
-    #[arg(long, value_name = "DIR")]
-    pub data_dir: Option<PathBuf>,
-
     /// Interpolate across gaps in the time axis instead of refusing the file.
     #[arg(long)]
     pub allow_gaps: bool,
-
-    /// DPU voltage set point [V] (12..=30); the busbar voltage is compared, not used.
-    #[arg(long, value_name = "V", default_value_t = 24.0, value_parser = parse_supply_v)]
-    pub supply_v: f32,
 
     /// Drive the twin from a built-in profile instead of the file's set-point channels
     /// (for files without `SuT Throttle`, `Dm Left`, `Dm Right`).
@@ -123,6 +111,28 @@ pub struct CompareArgs {
     pub baseline_effects: Option<PathBuf>,
 }
 
+impl CompareArgs {
+    /// `simrod compare MEAS` with every flag at its default (for callers in code, such as
+    /// the demo; a test checks these are clap's defaults).
+    pub fn for_file(meas: &Path) -> Self {
+        Self {
+            meas: meas.to_path_buf(),
+            model: ModelArgs::default(),
+            sensors: SensorArgs::default(),
+            mapping: None,
+            allow_gaps: false,
+            profile: None,
+            throttle_scale: None,
+            load_scale: None,
+            window_s: 2.0,
+            json: false,
+            report: None,
+            no_history: false,
+            baseline_effects: None,
+        }
+    }
+}
+
 /// `--window-s` value: finite and > 0.
 pub fn parse_window(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
@@ -145,10 +155,9 @@ pub struct Compared {
 
 /// Compare, record in the history, write the report; prints nothing.
 pub fn run(args: &CompareArgs) -> Result<Compared, CmdError> {
-    let effects = match &args.effects {
-        Some(p) => load_effects(p)?,
-        None => Effects::NONE,
-    };
+    let mut model = args.model.load()?;
+    model.sensors = args.sensors.model();
+    let effects = model.effects;
     let baseline_fx = args.baseline_effects.as_deref().map(load_effects).transpose()?;
     let load_opts = LoadOptions {
         mapping: args.mapping.as_deref().map(Mapping::load).transpose()?,
@@ -164,24 +173,11 @@ pub fn run(args: &CompareArgs) -> Result<Compared, CmdError> {
         },
         None => InputSource::Recorded,
     };
-    let opts = CompareOptions {
-        effects,
-        rates: args.params.into(),
-        speed_target: args.speed_target.into(),
-        coupling: args.coupling.into(),
-        supply_v: args.supply_v,
-        inputs,
-        window_s: args.window_s,
-        data: match &args.data_dir {
-            Some(dir) => Some(std::sync::Arc::new(crate::datadir::ModelData::load(dir)?)),
-            None => None,
-        },
-        ..CompareOptions::default()
-    };
+    let opts = CompareOptions { model, inputs, window_s: args.window_s, ..CompareOptions::default() };
     let mut result = compare(&loaded.measurement, &opts)
         .map_err(|e| CmdError::Usage(format!("{}: {e}", args.meas.display())))?;
     let mut notes: Vec<String> = loaded.notes.clone();
-    if let Some(p) = &args.effects {
+    if let Some(p) = &args.model.effects {
         notes.push(format!("twin effects from {}", p.display()));
     }
     notes.append(&mut result.notes);
@@ -200,8 +196,8 @@ pub fn run(args: &CompareArgs) -> Result<Compared, CmdError> {
         _ => iterate::previous_effects(&past, &effects),
     };
     let mut rec = iterate::options_rec(&opts, &result, args.mapping.as_deref(), args.allow_gaps);
-    rec.data_dir = args.data_dir.as_ref().map(|p| p.display().to_string());
-    let entry = Entry::new(&result, &args.meas, &effects, args.effects.as_deref(), rec);
+    rec.data_dir = args.model.data_dir.as_ref().map(|p| p.display().to_string());
+    let entry = Entry::new(&result, &args.meas, &effects, args.model.effects.as_deref(), rec);
     let mut recorded = None;
     if !args.no_history {
         match history::append(&hist_path, &entry) {
@@ -269,4 +265,22 @@ pub fn execute(args: &CompareArgs) -> Result<(), CmdError> {
         eprintln!("report: {}", path.display());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: CompareArgs,
+    }
+
+    #[test]
+    fn for_file_is_the_command_line_default() {
+        let parsed = Cli::try_parse_from(["simrod", "m.csv"]).unwrap().args;
+        assert_eq!(format!("{parsed:?}"), format!("{:?}", CompareArgs::for_file(Path::new("m.csv"))));
+    }
 }

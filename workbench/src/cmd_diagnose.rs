@@ -18,17 +18,19 @@ use std::time::Instant;
 
 use clap::Args;
 use model_core::effects::DELAY_CAPACITY;
-use model_core::{Config, Effects, Inputs, Maps, Params, SetPoints};
+use model_core::{Channel, Effects};
 use serde_json::{json, Map, Value};
 
-use crate::compare::{align, regions, CompareOptions, InputSource};
+use crate::compare::{regions, CompareOptions};
 use crate::diagnose::twin::{fitted_channels, BuiltinProbe, RecordedTwin};
 use crate::diagnose::{self, Diagnosis, Options, VerdictKind};
-use crate::effects_file::{format_effects, load_effects, summarize_effects, write_effects};
+use crate::effects_file::{format_effects, summarize_effects, write_effects};
 use crate::error::CmdError;
 use crate::measure::{self, LoadOptions, Mapping, GAP_CHANNEL};
+use crate::report::table::columns;
 use crate::report::{change_pct, num, pct};
-use crate::simulate::{parse_supply_v, CouplingArg, RatesArg, SpeedTargetArg};
+use crate::twin::args::{ModelArgs, SensorArgs};
+use crate::twin::{Aligned, InputSource, MeasuredTwin};
 
 /// Fewest fitted channels a diagnosis runs on: with fewer, most effects look alike.
 pub const MIN_CHANNELS: usize = 4;
@@ -43,14 +45,16 @@ How the diagnosis works:
   by 1/noise^2. Every parameter of every effect in the library gets a sensitivity run; each
   effect is scored by how much of the error above noise its parameters remove (linear
   prediction), the leaders are refitted on the simulator (confirmed), and their parameters'
-  95 % intervals come from a block bootstrap of the residual. Effects whose predicted
+  95 % intervals come from a sandwich covariance of the fit whose long-run (autocorrelated)
+  residual variance uses a Bartlett taper, so it is never negative. Effects whose predicted
   residual shapes coincide are reported as confounded, with the built-in profile that best
   separates them.
   Verdicts: missing (one effect explains the error and leaves noise), partial, unexplained,
   nothing_missing (the residual is already noise-like).
-  Speed channels: the bench counts encoder pulses in a window centred on each sample
-  (--speed-window-s, 0.1 s on the SimRod bench; 0 when the speeds are not window-counted),
-  and the twin's speeds are averaged over the same window before they are compared.
+  The twin runs exactly as in `simrod compare` with the same flags (--data-dir, --effects,
+  --speed-window-s, ...): the bench counts encoder pulses in a window centred on each sample
+  (0.1 s on the SimRod bench; 0 when the speeds are not window-counted), and the twin's
+  speeds are averaged over the same window before they are compared.
   Files with gaps are refused: cut the run at the gap.";
 
 /// Arguments of `simrod diagnose`.
@@ -62,10 +66,11 @@ pub struct DiagnoseArgs {
     #[arg(value_name = "MEAS")]
     pub meas: PathBuf,
 
-    /// Effects already in the model (TOML); the diagnosis looks for what is missing on
-    /// top of them.
-    #[arg(long, value_name = "CURRENT.toml")]
-    pub effects: Option<PathBuf>,
+    #[command(flatten)]
+    pub model: ModelArgs,
+
+    #[command(flatten)]
+    pub sensors: SensorArgs,
 
     /// Print the diagnosis as JSON on stdout instead of the report.
     #[arg(long)]
@@ -76,45 +81,28 @@ pub struct DiagnoseArgs {
     #[arg(long, value_name = "OUT.toml")]
     pub write_effects: Option<PathBuf>,
 
-    /// Curtis rate parameters of the twin: programmed (table 5.16) or identified (5.17).
-    #[arg(long, value_enum, default_value_t = RatesArg::Identified)]
-    pub params: RatesArg,
-
-    /// Target speed from the identified map, or from the Max Speed parameter.
-    #[arg(long, value_enum, default_value_t = SpeedTargetArg::Map)]
-    pub speed_target: SpeedTargetArg,
-
-    /// Coupling stiffness: identified (4369 N m/rad) or datasheet (10310 N m/rad).
-    #[arg(long, value_enum, default_value_t = CouplingArg::Identified)]
-    pub coupling: CouplingArg,
-
-    /// DPU voltage set point [V] (12..=30).
-    #[arg(long, value_name = "V", default_value_t = 24.0, value_parser = parse_supply_v)]
-    pub supply_v: f32,
-
     /// Mapping file (TOML) renaming/scaling the file's channels to bench names.
     #[arg(long, value_name = "FILE")]
     pub mapping: Option<PathBuf>,
 
-    /// [s] the bench's speed-counting window (encoder pulses counted over this window,
-    /// centred on each sample); the twin's speeds get the same average. 0: none.
-    #[arg(long, value_name = "S", default_value_t = 0.1, value_parser = parse_speed_window)]
-    pub speed_window_s: f64,
-
     /// Worker threads for the simulations (default: the machine's cores, at most 8).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=256))]
     pub threads: Option<u32>,
-
-    /// Seed of the bootstrap (the same seed gives the same intervals).
-    #[arg(long, value_name = "N", default_value_t = 0x5eed)]
-    pub seed: u64,
 }
 
-/// `--speed-window-s` value: 0 (off) up to 5 s.
-pub fn parse_speed_window(s: &str) -> Result<f64, String> {
-    match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && (0.0..=5.0).contains(&v) => Ok(v),
-        _ => Err("expected a window in seconds, 0 (off) to 5".into()),
+impl DiagnoseArgs {
+    /// `simrod diagnose MEAS` with every flag at its default (for callers in code, such
+    /// as the demo; a test checks these are clap's defaults).
+    pub fn for_file(meas: &Path) -> Self {
+        Self {
+            meas: meas.to_path_buf(),
+            model: ModelArgs::default(),
+            sensors: SensorArgs::default(),
+            json: false,
+            write_effects: None,
+            mapping: None,
+            threads: None,
+        }
     }
 }
 
@@ -171,10 +159,9 @@ impl Diagnosed {
 /// Load, align and diagnose; writes nothing.
 pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
     let t0 = Instant::now();
-    let base = match &args.effects {
-        Some(p) => load_effects(p)?,
-        None => Effects::NONE,
-    };
+    let mut model = args.model.load()?;
+    model.sensors = args.sensors.model();
+    let base = model.effects;
     if let Some(out) = &args.write_effects {
         check_out_path(out)?;
     }
@@ -190,74 +177,99 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
             "{src}: the run has samples flagged in its `{GAP_CHANNEL}` column; diagnose fits every sample, so cut the run at the gap"
         )));
     }
-    let opts = CompareOptions {
-        effects: base,
-        rates: args.params.into(),
-        speed_target: args.speed_target.into(),
-        coupling: args.coupling.into(),
-        supply_v: args.supply_v,
-        inputs: InputSource::Recorded,
-        ..CompareOptions::default()
-    };
-    let al = align::align(meas, &opts).map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
-    check_delay(&base, al.dt_us).map_err(|m| {
-        CmdError::Usage(format!("{}: {m}", args.effects.as_deref().unwrap_or(Path::new("")).display()))
+    let twin = MeasuredTwin::new(meas, &model, &InputSource::Recorded)
+        .map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
+    check_delay(&base, twin.dt_us).map_err(|m| {
+        CmdError::Usage(format!("{}: {m}", args.model.effects.as_deref().unwrap_or(Path::new("")).display()))
     })?;
+    let al = twin.align(base).map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
+    let fitted = fitted_series(&al, &src)?;
 
-    // Measured channels, [channel][sample], in fitted order.
-    let mut channels = Vec::new();
-    let mut series = Vec::new();
-    let mut missing = Vec::new();
-    for c in fitted_channels() {
-        match al.channels.iter().find(|p| !p.derived && p.name == c.name()) {
-            Some(p) => {
-                if let Some(k) = p.meas.iter().position(|v| !v.is_finite()) {
-                    return Err(CmdError::Usage(format!(
-                        "{src}: {} is not a finite number at t = {:.6} s; diagnose needs every sample",
-                        c.name(),
-                        al.time_s.get(k).copied().unwrap_or(f64::NAN)
-                    )));
-                }
-                channels.push(c);
-                series.push(p.meas.clone());
-            }
-            None => missing.push(c.name()),
-        }
+    let probe = BuiltinProbe::standard(model.clone(), fitted.channels.clone());
+    let limits = CompareOptions { model, ..CompareOptions::default() }
+        .limits()
+        .map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
+    let mut o = Options {
+        base,
+        params: twin.model.params(),
+        regions: region_masks(&al, &limits),
+        ..Options::default()
+    };
+    if let Some(t) = args.threads {
+        o.threads = t as usize;
     }
-    if channels.len() < MIN_CHANNELS {
+    let (step_note, samples, dt_us) = (twin.step_note.clone(), al.time_s.len(), al.dt_us);
+    let duration_s = al.time_s.last().copied().unwrap_or(0.0) - al.time_s.first().copied().unwrap_or(0.0);
+    let recorded = RecordedTwin { twin, channels: fitted.channels.clone() };
+    let t1 = Instant::now();
+    let diagnosis = diagnose::diagnose(&recorded, &fitted.series, &o, Some(&probe))
+        .map_err(|e| CmdError::Runtime(format!("{src}: diagnosis failed: {e}")))?;
+    let t2 = Instant::now();
+
+    let mut notes = loaded.notes.clone();
+    notes.push(step_note.clone());
+    if !fitted.missing.is_empty() {
+        notes.push(format!("not in the file (not fitted): {}", fitted.missing.join(", ")));
+    }
+    Ok(Diagnosed {
+        setup: DiagSetup {
+            source: src,
+            samples,
+            duration_s,
+            dt_us,
+            step_note,
+            channels: fitted.channels.iter().map(|c| c.name()).collect(),
+            missing: fitted.missing,
+            base,
+            effects_path: args.model.effects.clone(),
+            speed_window_s: args.sensors.speed_window_s,
+            notes,
+        },
+        diagnosis,
+        timing: (t1.duration_since(t0).as_secs_f64(), t2.duration_since(t1).as_secs_f64()),
+    })
+}
+
+/// The measured channels the diagnosis fits, `[channel][sample]`, and those the file lacks.
+struct Fitted {
+    channels: Vec<Channel>,
+    series: Vec<Vec<f64>>,
+    missing: Vec<&'static str>,
+}
+
+/// The fitted channels of an aligned run; every sample must be finite.
+fn fitted_series(al: &Aligned, src: &str) -> Result<Fitted, CmdError> {
+    let mut f = Fitted { channels: Vec::new(), series: Vec::new(), missing: Vec::new() };
+    for c in fitted_channels() {
+        let Some(p) = al.channels.iter().find(|p| !p.derived && p.name == c.name()) else {
+            f.missing.push(c.name());
+            continue;
+        };
+        if let Some(k) = p.meas.iter().position(|v| !v.is_finite()) {
+            return Err(CmdError::Usage(format!(
+                "{src}: {} is not a finite number at t = {:.6} s; diagnose needs every sample",
+                c.name(),
+                al.time_s.get(k).copied().unwrap_or(f64::NAN)
+            )));
+        }
+        f.channels.push(c);
+        f.series.push(p.meas.clone());
+    }
+    if f.channels.len() < MIN_CHANNELS {
         return Err(CmdError::Usage(format!(
             "{src}: diagnose needs at least {MIN_CHANNELS} of the measured channels; the file lacks {}",
-            missing.join(", ")
+            f.missing.join(", ")
         )));
     }
+    Ok(f)
+}
 
-    let params = Params::thesis(opts.rates, opts.coupling);
-    let config = Config { dt_us: al.dt_us, params, speed_target: opts.speed_target, effects: base };
-    let inputs: Vec<Inputs> = (0..al.time_s.len())
-        .map(|k| {
-            let at = |v: &Vec<f64>| v.get(k).copied().unwrap_or(0.0) as f32;
-            Inputs {
-                sp: SetPoints {
-                    throttle_pct: at(&al.inputs[0]),
-                    load_pct: [at(&al.inputs[1]), at(&al.inputs[2])],
-                },
-                supply_v: args.supply_v,
-            }
-        })
-        .collect();
-    let twin =
-        RecordedTwin { config, inputs, channels: channels.clone(), speed_window_s: args.speed_window_s };
-    // The separating experiments are bench runs: at the bench's 1 kHz, whatever this file's rate.
-    let probe =
-        BuiltinProbe::standard(Config { dt_us: 1000, ..config }, channels.clone(), args.speed_window_s);
-    // Operating regions as `simrod compare` classifies them (from the measured and
-    // commanded signals), for the error each candidate removes per region.
-    let classes = regions::classify(
-        &al,
-        &regions::RegionRules::default(),
-        &regions::Limits::of(&params, &Maps::builtin()),
-    );
-    let mut region_masks: Vec<(String, Vec<bool>)> = (0..regions::N_COMBINED)
+/// Operating regions as `simrod compare` classifies them (from the measured and
+/// commanded signals), for the error each candidate removes per region: the combined
+/// regions holding at least 1 % of the samples, and "at a limit".
+fn region_masks(al: &Aligned, limits: &regions::Limits) -> Vec<(String, Vec<bool>)> {
+    let classes = regions::classify(al, &regions::RegionRules::default(), limits);
+    let mut masks: Vec<(String, Vec<bool>)> = (0..regions::N_COMBINED)
         .map(|i| {
             (
                 regions::combined_name(i),
@@ -266,38 +278,8 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
         })
         .filter(|(_, m)| m.iter().filter(|x| **x).count() * 100 >= m.len())
         .collect();
-    region_masks.push(("at a limit".into(), classes.classes.iter().map(|c| c.limits != 0).collect()));
-    let mut o = Options { base, params, seed: args.seed, regions: region_masks, ..Options::default() };
-    if let Some(t) = args.threads {
-        o.threads = t as usize;
-    }
-    let t1 = Instant::now();
-    let diagnosis = diagnose::diagnose(&twin, &series, &o, Some(&probe))
-        .map_err(|e| CmdError::Runtime(format!("{src}: diagnosis failed: {e}")))?;
-    let t2 = Instant::now();
-
-    let mut notes = loaded.notes.clone();
-    notes.push(al.step_note.clone());
-    if !missing.is_empty() {
-        notes.push(format!("not in the file (not fitted): {}", missing.join(", ")));
-    }
-    Ok(Diagnosed {
-        setup: DiagSetup {
-            source: src,
-            samples: al.time_s.len(),
-            duration_s: al.time_s.last().copied().unwrap_or(0.0) - al.time_s.first().copied().unwrap_or(0.0),
-            dt_us: al.dt_us,
-            step_note: al.step_note,
-            channels: channels.iter().map(|c| c.name()).collect(),
-            missing,
-            base,
-            effects_path: args.effects.clone(),
-            speed_window_s: args.speed_window_s,
-            notes,
-        },
-        diagnosis,
-        timing: (t1.duration_since(t0).as_secs_f64(), t2.duration_since(t1).as_secs_f64()),
-    })
+    masks.push(("at a limit".into(), classes.classes.iter().map(|c| c.limits != 0).collect()));
+    masks
 }
 
 /// The controller delay lives in a fixed buffer; refuse a current delay the model would cap.
@@ -341,31 +323,6 @@ pub fn params_text(c: &diagnose::engine::Candidate) -> String {
         })
         .collect::<Vec<_>>()
         .join(", ")
-}
-
-/// Columns padded to their widest cell; `left` columns left-aligned.
-fn columns(rows: &[Vec<String>], left: &[usize]) -> String {
-    let ncol = rows.iter().map(Vec::len).max().unwrap_or(0);
-    let widths: Vec<usize> = (0..ncol)
-        .map(|c| rows.iter().filter_map(|r| r.get(c)).map(|s| s.chars().count()).max().unwrap_or(0))
-        .collect();
-    let mut out = String::new();
-    for r in rows {
-        let mut line = String::from("  ");
-        for (c, (cell, w)) in r.iter().zip(&widths).enumerate() {
-            if c > 0 {
-                line.push_str("  ");
-            }
-            if left.contains(&c) {
-                line.push_str(&format!("{cell:<w$}"));
-            } else {
-                line.push_str(&format!("{cell:>w$}"));
-            }
-        }
-        out.push_str(line.trim_end());
-        out.push('\n');
-    }
-    out
 }
 
 /// The terminal report: the verdict first, then the evidence.
@@ -634,12 +591,14 @@ mod tests {
     use super::*;
 
     #[test]
-    fn speed_window_is_checked() {
-        assert_eq!(parse_speed_window("0.1"), Ok(0.1));
-        assert_eq!(parse_speed_window("0"), Ok(0.0));
-        assert!(parse_speed_window("-0.1").is_err());
-        assert!(parse_speed_window("NaN").is_err());
-        assert!(parse_speed_window("6").is_err());
+    fn for_file_is_the_command_line_default() {
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            args: DiagnoseArgs,
+        }
+        let parsed = <Cli as clap::Parser>::try_parse_from(["simrod", "m.csv"]).unwrap().args;
+        assert_eq!(format!("{parsed:?}"), format!("{:?}", DiagnoseArgs::for_file(Path::new("m.csv"))));
     }
 
     #[test]

@@ -8,15 +8,15 @@
 //! 5. `compare` again with it: the error falls; the HTML report shows before/after.
 //! 6. The hidden effect is revealed next to what was found, and the files are listed.
 //!
-//! Every step goes through the same code as its command (arguments parsed by the same
-//! clap definitions), so the demo shows exactly what a user would get by hand.
+//! Every step calls the same library function as its command, with the arguments the
+//! command would get from its defaults, so the demo shows exactly what a user would get
+//! by hand.
 
-use std::ffi::OsString;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use clap::{Args, Parser};
+use clap::Args;
 use model_core::{Builtin, Config, Effects, Profile, Simulation};
 
 use crate::atomic::write_atomic;
@@ -50,28 +50,6 @@ pub struct DemoArgs {
     /// Worker threads for the diagnosis (default: the machine's cores, at most 8).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=256))]
     pub threads: Option<u32>,
-}
-
-#[derive(Parser)]
-#[command(no_binary_name = true)]
-struct CompareCli {
-    #[command(flatten)]
-    args: CompareArgs,
-}
-
-#[derive(Parser)]
-#[command(no_binary_name = true)]
-struct DiagnoseCli {
-    #[command(flatten)]
-    args: DiagnoseArgs,
-}
-
-fn argv(parts: &[&dyn AsRef<std::ffi::OsStr>]) -> Vec<OsString> {
-    parts.iter().map(|p| p.as_ref().to_os_string()).collect()
-}
-
-fn bad_args(e: clap::Error) -> CmdError {
-    CmdError::Runtime(format!("demo: internal argument error: {e}"))
 }
 
 fn say(text: &str) -> Result<(), CmdError> {
@@ -225,12 +203,7 @@ pub fn execute(args: &DemoArgs) -> Result<(), CmdError> {
     ))?;
 
     let t = Instant::now();
-    let parse_compare = |extra: &[&dyn AsRef<std::ffi::OsStr>]| {
-        let mut v = argv(&[&meas]);
-        v.extend(argv(extra));
-        CompareCli::try_parse_from(v).map(|c| c.args).map_err(bad_args)
-    };
-    let before = cmd_compare::run(&parse_compare(&[])?)?;
+    let before = cmd_compare::run(&CompareArgs::for_file(&meas))?;
     say(&format!(
         "2. Compare   simrod compare {}: where does the model fail?  {}\n{}\n",
         meas.display(),
@@ -239,11 +212,7 @@ pub fn execute(args: &DemoArgs) -> Result<(), CmdError> {
     ))?;
 
     let t = Instant::now();
-    let mut dargs = argv(&[&meas]);
-    if let Some(th) = args.threads {
-        dargs.extend(argv(&[&"--threads", &th.to_string()]));
-    }
-    let d = cmd_diagnose::run(&DiagnoseCli::try_parse_from(dargs).map_err(bad_args)?.args)?;
+    let d = cmd_diagnose::run(&DiagnoseArgs { threads: args.threads, ..DiagnoseArgs::for_file(&meas) })?;
     let g = &d.diagnosis;
     let mut text =
         format!("3. Diagnose  simrod diagnose {}: which effect is missing?  {}\n", meas.display(), secs(t));
@@ -270,7 +239,10 @@ pub fn execute(args: &DemoArgs) -> Result<(), CmdError> {
     ))?;
 
     let t = Instant::now();
-    let after = cmd_compare::run(&parse_compare(&[&"--effects", &fx_path, &"--report", &report])?)?;
+    let mut again = CompareArgs::for_file(&meas);
+    again.model.effects = Some(fx_path.clone());
+    again.report = Some(report.clone());
+    let after = cmd_compare::run(&again)?;
     say(&format!(
         "5. Compare   simrod compare {} --effects {}: the error falls  {}\n{}\n",
         meas.display(),

@@ -10,74 +10,25 @@
 //! viscous_nm_s_per_rad = 0.01
 //! ```
 //!
-//! Sections are effect ids, keys their parameters (the vocabulary is
-//! [`model_core::effects::EFFECT_PARAMS`]; units and meaning in
-//! `workbench/examples/effects.toml`). Effects not named stay off, parameters not
-//! named keep their "off" value. Errors are `file:line:col: message`, naming the
-//! unknown effect or parameter with the accepted ones, or the parameter whose value
-//! the model refuses.
+//! Sections are effect ids, keys their parameters (the vocabulary, units and ranges are
+//! declared once in `model_core::effects`; `workbench/examples/effects.toml` lists them).
+//! Effects not named stay off, parameters not named keep their "off" value. Errors are
+//! `file:line:col: message`, naming the unknown effect or parameter with the accepted
+//! ones, or the parameter whose value the model refuses and the range it accepts.
 //!
 //! [`write_effects`] writes the same format (only the effects that are on), so a
 //! diagnosis can hand its result to `simulate --effects`.
 
-use std::fmt::{self, Write as _};
+use std::fmt::Write as _;
 use std::path::Path;
 
-use model_core::effects::{effect_ids, EffectKeyError, EFFECT_PARAMS};
+use model_core::effects::{self as fxdecl, EffectKeyError, EFFECTS};
 use model_core::Effects;
-use serde::de::{Deserialize, Deserializer, MapAccess, Visitor};
-use toml::Spanned;
+use model_data::effects::{parse_effect_file, Pos};
 
 use crate::atomic::write_atomic;
 use crate::error::FileError;
-use crate::toml_util::{list, toml_error, toml_f32, Num};
-
-/// One `[effect_id]` section, in file order.
-struct Section(Vec<(Spanned<String>, Spanned<Num>)>);
-
-impl<'de> Deserialize<'de> for Section {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        struct V;
-        impl<'de> Visitor<'de> for V {
-            type Value = Section;
-            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                f.write_str("an effect section: `param = number` lines under an [effect_id] header")
-            }
-            fn visit_map<A: MapAccess<'de>>(self, mut m: A) -> Result<Section, A::Error> {
-                let mut v = Vec::new();
-                while let Some(kv) = m.next_entry()? {
-                    v.push(kv);
-                }
-                Ok(Section(v))
-            }
-        }
-        d.deserialize_map(V)
-    }
-}
-
-/// The whole file, sections in file order (so the first error in the file is reported).
-/// Only the keys carry spans: a dotted-key table (`id.param = 1`) has none of its own.
-struct Sections(Vec<(Spanned<String>, Section)>);
-
-impl<'de> Deserialize<'de> for Sections {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        struct V;
-        impl<'de> Visitor<'de> for V {
-            type Value = Sections;
-            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                f.write_str("[effect_id] sections")
-            }
-            fn visit_map<A: MapAccess<'de>>(self, mut m: A) -> Result<Sections, A::Error> {
-                let mut v = Vec::new();
-                while let Some(kv) = m.next_entry()? {
-                    v.push(kv);
-                }
-                Ok(Sections(v))
-            }
-        }
-        d.deserialize_map(V)
-    }
-}
+use crate::toml_util::toml_f32;
 
 /// Read and parse an effect file.
 pub fn load_effects(path: &Path) -> Result<Effects, FileError> {
@@ -85,96 +36,37 @@ pub fn load_effects(path: &Path) -> Result<Effects, FileError> {
     parse_effects(&text, path)
 }
 
-/// Parse effect-file text; `origin` names the file in errors.
+/// Parse effect-file text; `origin` names the file in errors. The syntax is model-data's
+/// (the firmware's build script reads the same files with the same parser), the
+/// vocabulary and ranges model-core's declarations.
 pub fn parse_effects(text: &str, origin: impl AsRef<Path>) -> Result<Effects, FileError> {
     let origin = origin.as_ref();
-    let at = |span: std::ops::Range<usize>, msg: String| FileError::at_span(origin, text, Some(span), msg);
-    let Sections(sections) = toml::from_str(text).map_err(|e| toml_error(origin, text, &e))?;
-
+    let at = |p: Option<Pos>, msg: String| match p {
+        Some(p) => FileError::at(origin, p.line, p.col, msg),
+        None => FileError::whole(origin, msg),
+    };
+    let file = parse_effect_file(text).map_err(|e| at(Some(e.at), e.msg))?;
+    for s in &file.sections {
+        if fxdecl::effect(&s.id).is_none() {
+            return Err(at(Some(s.at), EffectKeyError::UnknownEffect.describe(&s.id, "").to_string()));
+        }
+    }
     let mut fx = Effects::NONE;
-    for (id, section) in &sections {
-        let id_str = id.get_ref().as_str();
-        for (param, value) in &section.0 {
-            let v = value.get_ref().0 as f32;
-            match fx.set(id_str, param.get_ref(), v) {
-                Ok(()) => {}
-                Err(EffectKeyError::UnknownEffect) => {
-                    return Err(at(
-                        id.span(),
-                        format!(
-                            "unknown effect `{id_str}`; known effects: {}",
-                            list(&effect_ids().collect::<Vec<_>>())
-                        ),
-                    ))
-                }
-                Err(EffectKeyError::UnknownParameter(names)) => {
-                    return Err(at(
-                        param.span(),
-                        format!(
-                            "[{id_str}]: unknown parameter `{}`; accepted: {}",
-                            param.get_ref(),
-                            list(names)
-                        ),
-                    ))
-                }
-            }
-        }
-        if section.0.is_empty() && !effect_ids().any(|e| e == id_str) {
-            return Err(at(
-                id.span(),
-                format!(
-                    "unknown effect `{id_str}`; known effects: {}",
-                    list(&effect_ids().collect::<Vec<_>>())
-                ),
-            ));
+    for e in &file.entries {
+        if let Err(k) = fx.set(&e.effect, &e.param, e.value as f32) {
+            return Err(at(Some(e.param_at), k.describe(&e.effect, &e.param).to_string()));
         }
     }
-
-    if let Err(bad) = fx.validate() {
-        // Point at the first parameter of the failing effect that is invalid on its own
-        // (the model's checks are per parameter), else at the section header.
-        let section = sections.iter().find(|(id, _)| id.get_ref() == bad);
-        let culprit = section.and_then(|(_, s)| {
-            s.0.iter().find(|(p, v)| {
-                let mut one = Effects::NONE;
-                one.set(bad, p.get_ref(), v.get_ref().0 as f32).is_ok() && one.validate().is_err()
-            })
-        });
-        return Err(match (culprit, section) {
-            (Some((p, v)), _) => at(
-                v.span(),
-                format!("[{bad}]: {} = {} is invalid: {}", p.get_ref(), v.get_ref().0, constraint(bad)),
-            ),
-            (None, Some((id, _))) => at(id.span(), format!("[{bad}]: {}", constraint(bad))),
-            (None, None) => FileError::whole(origin, format!("[{bad}]: {}", constraint(bad))),
-        });
-    }
+    fx.check().map_err(|bad| at(file.locate(bad.effect.id, Some(bad.param.name)), bad.to_string()))?;
     Ok(fx)
 }
 
-/// What `Effects::validate` requires of each effect, for error messages.
-pub fn constraint(id: &str) -> &'static str {
-    match id {
-        "differential_friction" => "coulomb_nm and viscous_nm_s_per_rad must be finite and >= 0",
-        "axle_friction_scale" => "left and right must be finite and >= 0",
-        "controller_delay" => "delay_s must be finite and >= 0",
-        "inverter_rate_scale" => "every scale must be finite and > 0",
-        "coupling_stiffness" => "stiffness_nm_per_rad must be finite and > 0",
-        "coupling_damping" => "damping_nm_s_per_rad must be finite and >= 0",
-        "inertia_scale" => "sut, load_l and load_r must be finite and > 0",
-        "connector_resistance" => "resistance_ohm must be finite and >= 0",
-        "supply_resistance" => "resistance_ohm must be in [0, 1) ohm",
-        "regen_efficiency" => "extra_loss must be in [0, 1)",
-        "torque_sensor_offset" => "left_nm and right_nm must be finite",
-        "torque_sensor_gain" | "speed_sensor_gain" | "current_sensor_gain" => {
-            "every gain must be finite and > 0"
-        }
-        "gear_backlash" => "backlash_deg must be in [0, 30] deg",
-        "stribeck_friction" => "peak_nm must be finite and >= 0, and speed_rpm > 0 when peak_nm > 0",
-        "connector_resistance_drift" => {
-            "alpha_per_k must be finite, k_per_w finite and >= 0, and time_constant_s > 0 when k_per_w > 0"
-        }
-        _ => "the model refuses these values",
+/// What `Effects::validate` requires of each effect, for error messages (from the
+/// declared ranges).
+pub fn constraint(id: &str) -> String {
+    match fxdecl::effect(id) {
+        Some(e) => e.constraint().to_string(),
+        None => "the model refuses these values".into(),
     }
 }
 
@@ -184,25 +76,26 @@ pub fn get_param(fx: &Effects, effect: &str, param: &str) -> Option<f32> {
     fx.get(effect, param).ok().flatten()
 }
 
+/// Whether any parameter of effect `e` differs from the thesis model.
+fn is_on(fx: &Effects, e: &fxdecl::EffectDecl) -> bool {
+    e.params.iter().any(|p| get_param(fx, e.id, p.name) != get_param(&Effects::NONE, e.id, p.name))
+}
+
 /// Effect-file text for `fx`: one section per effect that differs from
 /// `Effects::NONE`, with all of that effect's parameters (a section is the unit a
 /// user switches on or off). Refuses effects the model would refuse.
 pub fn format_effects(fx: &Effects) -> Result<String, String> {
-    fx.validate().map_err(|bad| format!("effect `{bad}` is invalid: {}", constraint(bad)))?;
+    fx.check().map_err(|bad| format!("effect `{}` is invalid: {bad}", bad.effect.id))?;
     let mut out = String::from(
         "# simrod effect file: the effects that differ from the thesis model.\n\
          # Units and meaning of every parameter: workbench/examples/effects.toml\n",
     );
-    for (id, params) in EFFECT_PARAMS {
-        let differs = params.iter().any(|p| get_param(fx, id, p) != get_param(&Effects::NONE, id, p));
-        if !differs {
-            continue;
-        }
+    for e in EFFECTS.iter().filter(|e| is_on(fx, e)) {
         // Writing to a String cannot fail.
-        let _ = write!(out, "\n[{id}]\n");
-        for p in *params {
-            if let Some(v) = get_param(fx, id, p) {
-                let _ = writeln!(out, "{p} = {}", toml_f32(v));
+        let _ = write!(out, "\n[{}]\n", e.id);
+        for p in e.params {
+            if let Some(v) = get_param(fx, e.id, p.name) {
+                let _ = writeln!(out, "{} = {}", p.name, toml_f32(v));
             }
         }
     }
@@ -214,13 +107,13 @@ pub fn format_effects(fx: &Effects) -> Result<String, String> {
 /// `none`. Same selection as [`format_effects`] (a whole section per effect that is on).
 pub fn summarize_effects(fx: &Effects) -> String {
     let mut parts = Vec::new();
-    for (id, params) in EFFECT_PARAMS {
-        if !params.iter().any(|p| get_param(fx, id, p) != get_param(&Effects::NONE, id, p)) {
-            continue;
-        }
-        let values: Vec<String> =
-            params.iter().filter_map(|p| get_param(fx, id, p).map(|v| format!("{p}={v}"))).collect();
-        parts.push(format!("{id}({})", values.join(", ")));
+    for e in EFFECTS.iter().filter(|e| is_on(fx, e)) {
+        let values: Vec<String> = e
+            .params
+            .iter()
+            .filter_map(|p| get_param(fx, e.id, p.name).map(|v| format!("{}={v}", p.name)))
+            .collect();
+        parts.push(format!("{}({})", e.id, values.join(", ")));
     }
     if parts.is_empty() {
         "none".into()
@@ -240,6 +133,7 @@ pub fn write_effects(fx: &Effects, path: &Path) -> Result<(), FileError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use model_core::effects::{effect_ids, EFFECT_PARAMS};
 
     fn parse(text: &str) -> Result<Effects, String> {
         parse_effects(text, "fx.toml").map_err(|e| e.to_string())
@@ -260,8 +154,16 @@ mod tests {
         want.coupling_stiffness = Some(10310.0);
         assert_eq!(fx, want);
         assert_eq!(parse("").unwrap(), Effects::NONE);
-        // Dotted keys are the same thing in TOML.
+        // Dotted keys and inline tables are the same thing in TOML.
         assert_eq!(parse("controller_delay.delay_s = 0.012\n").unwrap().controller_delay_s, 0.012);
+        assert_eq!(
+            parse(
+                "controller_delay.delay_s = 0.012\ndifferential_friction = { coulomb_nm = 1, \
+                 viscous_nm_s_per_rad = 0.01 }\ncoupling_stiffness.stiffness_nm_per_rad = 10_310\n"
+            )
+            .unwrap(),
+            want
+        );
     }
 
     #[test]
@@ -281,7 +183,7 @@ mod tests {
         let e = parse("[supply_resistance]\nresistance_ohm = 2\n").unwrap_err();
         assert_eq!(
             e,
-            "fx.toml:2:18: [supply_resistance]: resistance_ohm = 2 is invalid: resistance_ohm must be in [0, 1) ohm"
+            "fx.toml:2:18: [supply_resistance]: resistance_ohm = 2 is invalid: resistance_ohm must be in [0, 1)"
         );
         let e = parse("[inertia_scale]\nsut = 1\nload_l = 1.1\nload_r = -1\n").unwrap_err();
         assert!(e.starts_with("fx.toml:4:10: [inertia_scale]: load_r = -1 is invalid"), "{e}");
@@ -289,9 +191,27 @@ mod tests {
         let e = parse("[controller_delay]\ndelay_s = \"long\"\n").unwrap_err();
         assert!(e.starts_with("fx.toml:2:11: ") && e.contains("expected a number"), "{e}");
         let e = parse("delay_s = 0.01\n").unwrap_err();
-        assert!(e.starts_with("fx.toml:1:11: ") && e.contains("[effect_id]"), "{e}");
+        assert!(e.starts_with("fx.toml:1:1: ") && e.contains("[effect_id]"), "{e}");
+        // A range that depends on a sibling: pointed at the section when not given.
+        let e = parse("[stribeck_friction]\npeak_nm = 0.5\n").unwrap_err();
+        assert_eq!(
+            e,
+            "fx.toml:1:2: [stribeck_friction]: speed_rpm = 0 is invalid: \
+             speed_rpm must be finite and > 0 when peak_nm is not 0"
+        );
+        // ... and not checked while the effect is off.
+        assert_eq!(parse("[stribeck_friction]\nspeed_rpm = -1\n").unwrap().stribeck_friction.speed_rpm, -1.0);
         let e = parse("[controller_delay]\ndelay_s = 0.01\n[controller_delay]\n").unwrap_err();
         assert!(e.starts_with("fx.toml:3:"), "{e}");
+    }
+
+    /// The file the firmware's build compiles in reads the same here.
+    #[test]
+    fn firmware_example_file_parses() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware/effects/example.toml");
+        let fx = load_effects(&path).unwrap();
+        assert_eq!(fx.controller_delay_s.to_bits(), 0.012f32.to_bits());
+        assert_eq!(fx.coupling_stiffness, Some(7000.0));
     }
 
     #[test]

@@ -6,10 +6,11 @@ use std::path::Path;
 
 use model_core::{CouplingStiffness, Effects, RateSet, SpeedTarget};
 
-use crate::compare::{align, metrics, CompareError, CompareOptions, CompareResult};
+use crate::compare::{metrics, CompareError, CompareOptions, CompareResult};
 use crate::history::{self, Entry, History, OptionsRec};
 use crate::measure::Measurement;
 use crate::report::html::{Baseline, BaselineChannel, HistoryRow, HistoryView};
+use crate::twin::MeasuredTwin;
 
 /// The options record of a comparison.
 pub fn options_rec(
@@ -19,22 +20,22 @@ pub fn options_rec(
     allow_gaps: bool,
 ) -> OptionsRec {
     OptionsRec {
-        params: match opts.rates {
+        params: match opts.model.rates {
             RateSet::Programmed => "programmed",
             RateSet::Identified => "identified",
         }
         .into(),
-        speed_target: match opts.speed_target {
+        speed_target: match opts.model.speed_target {
             SpeedTarget::Map => "map",
             SpeedTarget::Parameter => "parameter",
         }
         .into(),
-        coupling: match opts.coupling {
+        coupling: match opts.model.coupling {
             CouplingStiffness::Identified => "identified",
             CouplingStiffness::Datasheet => "datasheet",
         }
         .into(),
-        supply_v: opts.supply_v,
+        supply_v: opts.model.supply_v,
         inputs: r.setup.inputs.clone(),
         window_s: opts.window_s,
         mapping: mapping.map(|p| p.display().to_string()),
@@ -59,7 +60,7 @@ pub fn baseline(
     effects: Effects,
     origin: String,
 ) -> Result<Baseline, CompareError> {
-    let al = align::align(meas, &CompareOptions { effects, ..opts.clone() })?;
+    let al = MeasuredTwin::new(meas, &opts.model, &opts.inputs)?.align(effects)?;
     let channels = al
         .channels
         .iter()
@@ -70,7 +71,7 @@ pub fn baseline(
                     *r = f64::NAN;
                 }
             }
-            let m = metrics::metrics(&al.time_s, &p.meas, &e);
+            let m = metrics::metrics(&p.name, &al.time_s, &p.meas, &e);
             BaselineChannel {
                 name: p.name.clone(),
                 sim: p.sim.clone(),
@@ -83,7 +84,7 @@ pub fn baseline(
     Ok(Baseline {
         origin,
         before: crate::effects_file::summarize_effects(&effects),
-        after: crate::effects_file::summarize_effects(&opts.effects),
+        after: crate::effects_file::summarize_effects(&opts.model.effects),
         channels,
     })
 }

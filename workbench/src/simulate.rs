@@ -10,25 +10,24 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use clap::{Args, ValueEnum};
+use clap::Args;
 use model_core::effects::DELAY_CAPACITY;
 use model_core::model::DT_US_RANGE;
 use model_core::profile::MAX_SETS;
 use model_core::{
-    Builtin, Config, ConfigError, CouplingStiffness, Effects, Model, Params, Profile, ProfileError, RateSet,
-    Simulation, SpeedTarget, N_CHANNELS,
+    Builtin, Config, ConfigError, Effects, Model, Profile, ProfileError, Simulation, N_CHANNELS,
 };
 
 use crate::atomic::write_atomic;
 use crate::datadir::ModelData;
-use crate::effects_file::load_effects;
-use crate::error::{CmdError, FileError};
+use crate::error::CmdError;
 use crate::profile_file::{load_profile, SCALE_RANGE};
 use crate::sim_csv::{header, RowWriter};
 use crate::summary::{StatsAccumulator, Summary};
-
-/// DPU voltage range of the bench [V].
-pub const SUPPLY_V_RANGE: (f32, f32) = (12.0, 30.0);
+use crate::twin::args::file_error;
+pub use crate::twin::args::{
+    check_supply_v, parse_supply_v, CouplingArg, ModelArgs, RatesArg, SpeedTargetArg, SUPPLY_V_RANGE,
+};
 
 /// Arguments of `simrod simulate`.
 #[derive(Debug, Clone, Args)]
@@ -46,35 +45,12 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "Y", allow_negative_numbers = true, value_parser = parse_scale)]
     pub load_scale: Option<f32>,
 
-    /// Curtis rate parameters: as programmed (table 5.16) or as identified (5.17).
-    #[arg(long, value_enum, default_value_t = RatesArg::Identified)]
-    pub params: RatesArg,
-
-    /// Target speed from the identified map, or from the Max Speed parameter.
-    #[arg(long, value_enum, default_value_t = SpeedTargetArg::Map)]
-    pub speed_target: SpeedTargetArg,
-
-    /// Coupling stiffness: identified (4369 N m/rad) or datasheet (10310 N m/rad).
-    #[arg(long, value_enum, default_value_t = CouplingArg::Identified)]
-    pub coupling: CouplingArg,
-
     /// Step [µs], 10..=10000; 1000 is the bench's rate.
     #[arg(long, value_name = "US", default_value_t = 1000, value_parser = parse_dt_us)]
     pub dt_us: u32,
 
-    /// DPU supply voltage [V], 12..=30 as on the bench.
-    #[arg(long, value_name = "V", default_value_t = 24.0, value_parser = parse_supply_v)]
-    pub supply_v: f32,
-
-    /// Effect file (TOML) switching on effects beyond the thesis model.
-    #[arg(long, value_name = "FILE.toml")]
-    pub effects: Option<PathBuf>,
-
-    /// Model data directory (parameters.toml and the CSV maps, the format of
-    /// model-core/data) to run instead of the built-in data: an altered or identified
-    /// model without rebuilding. Its profiles/ (if any) replace the built-in profiles.
-    #[arg(long, value_name = "DIR")]
-    pub data_dir: Option<PathBuf>,
+    #[command(flatten)]
+    pub model: ModelArgs,
 
     /// Output CSV; replaced atomically, so a failed run keeps the previous file
     /// (a device or FIFO such as /dev/null or /dev/stdout is written directly).
@@ -97,54 +73,6 @@ pub struct ProfileSource {
     /// User test profile (TOML; format in workbench/examples/profile.toml).
     #[arg(long, value_name = "FILE.toml")]
     pub profile_file: Option<PathBuf>,
-}
-
-/// `--params`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum RatesArg {
-    Programmed,
-    Identified,
-}
-
-/// `--speed-target`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum SpeedTargetArg {
-    Map,
-    Parameter,
-}
-
-/// `--coupling`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum CouplingArg {
-    Identified,
-    Datasheet,
-}
-
-impl From<RatesArg> for RateSet {
-    fn from(a: RatesArg) -> Self {
-        match a {
-            RatesArg::Programmed => RateSet::Programmed,
-            RatesArg::Identified => RateSet::Identified,
-        }
-    }
-}
-
-impl From<SpeedTargetArg> for SpeedTarget {
-    fn from(a: SpeedTargetArg) -> Self {
-        match a {
-            SpeedTargetArg::Map => SpeedTarget::Map,
-            SpeedTargetArg::Parameter => SpeedTarget::Parameter,
-        }
-    }
-}
-
-impl From<CouplingArg> for CouplingStiffness {
-    fn from(a: CouplingArg) -> Self {
-        match a {
-            CouplingArg::Identified => CouplingStiffness::Identified,
-            CouplingArg::Datasheet => CouplingStiffness::Datasheet,
-        }
-    }
 }
 
 fn builtin_names() -> String {
@@ -191,25 +119,6 @@ pub fn parse_dt_us(s: &str) -> Result<u32, String> {
         .parse()
         .map_err(|_| format!("expected a whole number of µs in [{}, {}]", DT_US_RANGE.0, DT_US_RANGE.1))?;
     check_dt_us(v)
-}
-
-/// Checks a supply voltage against the bench's range.
-pub fn check_supply_v(v: f32) -> Result<f32, String> {
-    let (lo, hi) = SUPPLY_V_RANGE;
-    if v.is_finite() && (lo..=hi).contains(&v) {
-        Ok(v)
-    } else {
-        Err(format!("expected a voltage in [{lo}, {hi}] V (the bench's range), got {v}"))
-    }
-}
-
-/// `--supply-v` value.
-pub fn parse_supply_v(s: &str) -> Result<f32, String> {
-    let v: f32 = s
-        .trim()
-        .parse()
-        .map_err(|_| format!("expected a voltage in [{}, {}] V", SUPPLY_V_RANGE.0, SUPPLY_V_RANGE.1))?;
-    check_supply_v(v)
 }
 
 /// A validated run: what to simulate and how to describe it.
@@ -264,12 +173,9 @@ impl SimulateArgs {
         let throttle_scale = usage("--throttle-scale", throttle_scale)?;
         let load_scale = usage("--load-scale", self.load_scale.map(check_scale).transpose())?;
         let dt_us = usage("--dt-us", check_dt_us(self.dt_us))?;
-        let supply_v = usage("--supply-v", check_supply_v(self.supply_v))?;
-
-        let data = match &self.data_dir {
-            Some(dir) => Some(Arc::new(ModelData::load(dir).map_err(|e| file_error("--data-dir", e))?)),
-            None => None,
-        };
+        let model = self.model.load()?;
+        let supply_v = model.supply_v;
+        let data = model.data.clone();
         let (profile, name, ts, ls) = match (&self.source.profile, &self.source.profile_file) {
             (Some(b), None) => {
                 let (ts, ls) = (throttle_scale.unwrap_or(1.0), load_scale.unwrap_or(1.0));
@@ -297,27 +203,14 @@ impl SimulateArgs {
             }
         };
 
-        let effects = match &self.effects {
-            Some(path) => {
-                let fx = load_effects(path).map_err(|e| file_error("--effects", e))?;
-                check_delay(&fx, dt_us).map_err(|m| CmdError::Usage(format!("{}: {m}", path.display())))?;
-                fx
-            }
-            None => Effects::NONE,
-        };
-
-        let params = match &data {
-            Some(d) => d.params(self.params.into(), self.coupling.into()),
-            None => Params::thesis(self.params.into(), self.coupling.into()),
-        };
-        let config = Config { dt_us, params, speed_target: self.speed_target.into(), effects };
+        if let Some(path) = &self.model.effects {
+            check_delay(&model.effects, dt_us)
+                .map_err(|m| CmdError::Usage(format!("{}: {m}", path.display())))?;
+        }
+        let config = model.config(dt_us, model.effects);
         let title = format!(
-            "{name}: throttle x{ts}, load x{ls} | dt {dt_us} µs | supply {supply_v} V | rates {}, speed target {}, coupling {} | effects {} | data {}",
-            value_name(self.params),
-            value_name(self.speed_target),
-            value_name(self.coupling),
-            self.effects.as_deref().map_or("none".to_string(), |p| p.display().to_string()),
-            self.data_dir.as_deref().map_or("built-in".to_string(), |p| p.display().to_string()),
+            "{name}: throttle x{ts}, load x{ls} | dt {dt_us} µs | supply {supply_v} V | {}",
+            self.model.describe()
         );
         let spec = RunSpec { title, config, profile, supply_v, data };
         spec.simulation()?; // the model's own checks, before any output is touched
@@ -325,23 +218,9 @@ impl SimulateArgs {
     }
 }
 
-/// A file that cannot be read at all is named with its flag; errors inside a file keep
-/// the `file:line:col:` form editors understand.
-fn file_error(flag: &str, e: FileError) -> CmdError {
-    if e.line.is_none() {
-        CmdError::Usage(format!("{flag} {e}"))
-    } else {
-        e.into()
-    }
-}
-
 /// Prefixes a value check's message with the flag it is about.
 fn usage<T>(flag: &str, r: Result<T, String>) -> Result<T, CmdError> {
     r.map_err(|m| CmdError::Usage(format!("{flag}: {m}")))
-}
-
-fn value_name(v: impl ValueEnum) -> String {
-    v.to_possible_value().map_or_else(String::new, |p| p.get_name().to_string())
 }
 
 /// The controller delay is held in a fixed buffer of `DELAY_CAPACITY` steps; the model

@@ -19,7 +19,7 @@ fn ok(o: &Output) -> String {
 fn clean_bench_file_compares_to_zero_in_json() {
     let d = tempfile::tempdir().unwrap();
     ok(&simrod(d.path(), &["bench", "--profile", "TP12", "--noise", "none", "-q", "--out", "m.mat"]));
-    let out = ok(&simrod(d.path(), &["compare", "m.mat", "--json"]));
+    let out = ok(&simrod(d.path(), &["compare", "m.mat", "--json", "--speed-window-s", "0"]));
     let j: Value = serde_json::from_str(&out).expect("stdout is JSON");
     let channels = j["channels"].as_object().unwrap();
     assert_eq!(channels.len(), model_core::MEASURED.len() + 4);
@@ -46,7 +46,10 @@ fn hidden_offset_is_found_and_reported_in_html() {
         d.path(),
         &["bench", "--profile", "TP12", "--noise", "none", "--effects", "fx.toml", "-q", "--out", "m.csv"],
     ));
-    let table = ok(&simrod(d.path(), &["compare", "m.csv", "--report", "rep/sub", "--window-s", "1.5"]));
+    let table = ok(&simrod(
+        d.path(),
+        &["compare", "m.csv", "--report", "rep/sub", "--window-s", "1.5", "--speed-window-s", "0"],
+    ));
     assert!(table.contains("WORST CHANNEL: C_Kistler_L"), "{table}");
     assert!(table.contains("Worst 1.5 s spans"), "{table}");
     let html = std::fs::read_to_string(d.path().join("rep/sub/index.html")).unwrap();
@@ -58,7 +61,10 @@ fn hidden_offset_is_found_and_reported_in_html() {
         assert!(!html.contains(bad), "{bad}");
     }
     // The effect on the twin side explains it away.
-    let out = ok(&simrod(d.path(), &["compare", "m.csv", "--effects", "fx.toml", "--json"]));
+    let out = ok(&simrod(
+        d.path(),
+        &["compare", "m.csv", "--effects", "fx.toml", "--json", "--speed-window-s", "0"],
+    ));
     let j: Value = serde_json::from_str(&out).unwrap();
     assert_eq!(j["channels"]["C_Kistler_L"]["rmse"].as_f64(), Some(0.0));
 }
@@ -80,13 +86,26 @@ fn files_without_set_points_need_a_profile() {
     let o = simrod(d.path(), &["compare", "nosp.csv"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--profile"));
-    let out = ok(&simrod(d.path(), &["compare", "nosp.csv", "--profile", "tp12", "--json"]));
+    let out = ok(&simrod(
+        d.path(),
+        &["compare", "nosp.csv", "--profile", "tp12", "--json", "--speed-window-s", "0"],
+    ));
     let j: Value = serde_json::from_str(&out).unwrap();
     assert_eq!(j["channels"]["SuTMotorEnc"]["rmse"].as_f64(), Some(0.0));
     // The wrong scale is visible.
     let out = ok(&simrod(
         d.path(),
-        &["compare", "nosp.csv", "--profile", "tp12", "--throttle-scale", "0.7", "--json"],
+        &[
+            "compare",
+            "nosp.csv",
+            "--profile",
+            "tp12",
+            "--throttle-scale",
+            "0.7",
+            "--json",
+            "--speed-window-s",
+            "0",
+        ],
     ));
     let j: Value = serde_json::from_str(&out).unwrap();
     assert!(j["channels"]["SuTMotorEnc"]["nrmse"].as_f64().unwrap() > 0.01);

@@ -23,6 +23,7 @@ use workbench::identify::plateau::Reason;
 use workbench::identify::progress::Progress;
 use workbench::identify::run::Run;
 use workbench::identify::{identify, Context, Identification, What};
+use workbench::twin::ModelOptions;
 
 /// True friction laws: the base's x1.2, threshold 30 rpm instead of 20.
 const FRICTION: [(f64, f64, f64); 2] = [(9.6, 0.108, 30.0), (9.72, 0.1104, 30.0)];
@@ -61,8 +62,8 @@ fn truth(base: &ModelData) -> ModelData {
     t.speed_fwd.y =
         vec![0.0, 170.0, 400.0, 640.0, 890.0, 1130.0, 1370.0, 1610.0, 1840.0, 1950.0, 2030.0, 2100.0];
     t.speed_rev.y = vec![0.0, 60.0, 120.0, 175.0, 290.0, 400.0, 450.0, 470.0, 485.0, 500.0];
-    for s in 0..2 {
-        t.friction[s] = friction_map(&base.friction[s], FRICTION[s]);
+    for (s, curve) in FRICTION.iter().enumerate() {
+        t.friction[s] = friction_map(&base.friction[s], *curve);
         t.load_torque[s].z.iter_mut().for_each(|v| *v *= 0.9);
         t.load_current[s].z.iter_mut().for_each(|v| *v *= 0.9);
         t.load_power[s].z.iter_mut().for_each(|v| *v *= 1.1);
@@ -204,8 +205,14 @@ fn identify_recovers_an_altered_model_and_the_twin_validates() {
     let held =
         bench_run(&truth, &Plan::builtin(&truth, Builtin::TP07, 1.0, 1.0, 9_999), &Bench::default()).unwrap();
     let cmp = |d: &ModelData| {
-        compare(&held.meas, &CompareOptions { data: Some(Arc::new(d.clone())), ..CompareOptions::default() })
-            .unwrap()
+        compare(
+            &held.meas,
+            &CompareOptions {
+                model: ModelOptions { data: Some(Arc::new(d.clone())), ..ModelOptions::default() },
+                ..CompareOptions::default()
+            },
+        )
+        .unwrap()
     };
     let (ct, ci, cb) = (cmp(&truth), cmp(&ident), cmp(&base));
     let mut base_worse = 0;

@@ -1,13 +1,13 @@
 //! Measured run vs twin: run the twin on the run's own inputs and show where, when and
 //! in which operating region the two disagree.
 //!
-//! Pipeline: [`align`] (twin on the recorded set points, paired samples) →
+//! Pipeline: [`crate::twin`] (twin on the recorded set points, as the bench records it,
+//! paired samples) →
 //! [`metrics`] per channel → [`regions`] (classify every sample from measured and
 //! commanded signals) → [`budget`] (each region's share of the squared error) →
 //! [`spans`] (worst windows) → [`residual`] (whiteness, input cross-correlation).
 //! The residual is `sim − meas` throughout.
 
-pub mod align;
 pub mod budget;
 pub mod metrics;
 pub mod regions;
@@ -17,41 +17,24 @@ pub mod spans;
 #[cfg(test)]
 mod tests;
 
-use std::sync::Arc;
 use std::time::Instant;
 
-use model_core::{Builtin, CouplingStiffness, Effects, Maps, Params, RateSet, SpeedTarget};
+use model_core::{Maps, RateSet, SpeedTarget, MEASURED};
 
-use crate::datadir::ModelData;
 use crate::measure::Measurement;
+pub use crate::twin::{Aligned, InputSource, Paired, TwinError as CompareError};
+use crate::twin::{MeasuredTwin, ModelOptions};
 use budget::RegionShare;
 use metrics::Metrics;
 use regions::{Classification, RegionRules};
 use residual::{CrossPeak, Whiteness};
 use spans::Span;
 
-/// Where the twin's set points come from.
-#[derive(Debug, Clone, PartialEq)]
-pub enum InputSource {
-    /// The file's set-point channels (`SuT Throttle`, `Dm Left`, `Dm Right`).
-    Recorded,
-    /// A built-in profile, scaled, for files without set-point channels.
-    Profile { which: Builtin, throttle_scale: f32, load_scale: f32 },
-}
-
 /// How to compare.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CompareOptions {
-    /// Effects switched on in the twin.
-    pub effects: Effects,
-    /// Curtis rate set.
-    pub rates: RateSet,
-    /// Target-speed approach.
-    pub speed_target: SpeedTarget,
-    /// Coupling stiffness parameter.
-    pub coupling: CouplingStiffness,
-    /// [V] DPU set point (the busbar voltage is an output, not an input).
-    pub supply_v: f32,
+    /// The twin and how the bench records it.
+    pub model: ModelOptions,
     pub inputs: InputSource,
     /// [s] width of the worst-span windows.
     pub window_s: f64,
@@ -64,19 +47,12 @@ pub struct CompareOptions {
     /// Top combined regions listed per channel.
     pub top_regions: usize,
     pub rules: RegionRules,
-    /// Model data (`--data-dir`): maps, parameters and profiles instead of the built-in
-    /// ones. `None`: the twin compiled into the binary.
-    pub data: Option<Arc<ModelData>>,
 }
 
 impl Default for CompareOptions {
     fn default() -> Self {
         Self {
-            effects: Effects::NONE,
-            rates: RateSet::Identified,
-            speed_target: SpeedTarget::Map,
-            coupling: CouplingStiffness::Identified,
-            supply_v: 24.0,
+            model: ModelOptions::default(),
             inputs: InputSource::Recorded,
             window_s: 2.0,
             spans: 3,
@@ -84,33 +60,16 @@ impl Default for CompareOptions {
             max_lag_s: 1.0,
             top_regions: 3,
             rules: RegionRules::default(),
-            data: None,
         }
     }
 }
 
-/// Why a comparison could not be made (all user-data problems).
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum CompareError {
-    #[error("the measurement has {0} samples; at least 2 are needed")]
-    TooShort(usize),
-    #[error("the time axis is not finite and strictly increasing")]
-    BadTime,
-    #[error("channel {channel} has {got} values for {want} time samples")]
-    Length { channel: String, got: usize, want: usize },
-    #[error(
-        "no set-point channel(s) {} in the file: compare with --profile NAME instead",
-        .0.join(", ")
-    )]
-    NoSetPoints(Vec<String>),
-    #[error("the file has none of the twin's measured channels")]
-    NoChannels,
-    #[error("the twin refused the configuration: {0}")]
-    Model(String),
-    #[error("profile: {0}")]
-    Profile(String),
-    #[error("--window-s must be finite and > 0")]
-    Window,
+impl CompareOptions {
+    /// The operating limits of the region rules, from the twin's own data.
+    pub fn limits(&self) -> Result<regions::Limits, CompareError> {
+        let maps: Maps<'_> = self.model.maps()?;
+        Ok(regions::Limits::of(&self.model.params(), &maps))
+    }
 }
 
 /// Everything about one channel.
@@ -134,6 +93,13 @@ pub struct ChannelResult {
     pub cross: Vec<CrossPeak>,
 }
 
+impl ChannelResult {
+    /// The residual has structure a model could explain (not white, not negligible).
+    pub fn structured(&self) -> bool {
+        self.whiteness.verdict == residual::Verdict::Coloured
+    }
+}
+
 /// How the comparison was set up, for the report.
 #[derive(Debug, Clone)]
 pub struct Setup {
@@ -149,6 +115,8 @@ pub struct Setup {
     pub supply_v: f32,
     pub effects_on: bool,
     pub window_s: f64,
+    /// [s] the bench's speed-counting window applied to the twin's speeds (0: none).
+    pub speed_window_s: f64,
 }
 
 /// The comparison.
@@ -169,17 +137,13 @@ pub struct CompareResult {
 
 impl CompareResult {
     /// The channel where the model is most wrong: the largest NRMSE among channels whose
-    /// residual has structure (coloured); a white residual is noise no model explains,
-    /// however large. With no coloured residual, the largest non-negligible NRMSE.
+    /// residual has structure (coloured). A white residual is noise no model explains,
+    /// however large, so a run whose residuals are all noise-like has no worst channel.
     pub fn worst_channel(&self) -> Option<&ChannelResult> {
-        let pick = |want: &dyn Fn(&ChannelResult) -> bool| {
-            self.channels
-                .iter()
-                .filter(|c| c.metrics.nrmse.is_finite() && want(c))
-                .max_by(|a, b| a.metrics.nrmse.total_cmp(&b.metrics.nrmse))
-        };
-        pick(&|c| c.whiteness.verdict == residual::Verdict::Coloured)
-            .or_else(|| pick(&|c| c.whiteness.verdict != residual::Verdict::Negligible))
+        self.channels
+            .iter()
+            .filter(|c| c.metrics.nrmse.is_finite() && c.structured())
+            .max_by(|a, b| a.metrics.nrmse.total_cmp(&b.metrics.nrmse))
     }
 
     /// The channel called `name`.
@@ -188,13 +152,26 @@ impl CompareResult {
     }
 }
 
+/// How much larger than the counting error's RMS a counted speed's residual may be and
+/// still be called resolution: 15 %, so a model error hides only below about half the
+/// counting RMS (√(1.15² − 1) ≈ 0.57), a few rpm on the bench's encoders.
+pub const RESOLUTION_MARGIN: f64 = 1.15;
+
+/// The residual of channel `name` (RMS `rmse`) is no larger than its sensor's counting
+/// resolution.
+fn within_resolution(opts: &CompareOptions, name: &str, rmse: f64) -> bool {
+    model_core::Channel::from_name(name)
+        .and_then(|c| opts.model.sensors.counting_rms(c))
+        .is_some_and(|q| rmse <= RESOLUTION_MARGIN * q)
+}
+
 /// Compare a measured run with the twin.
 pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResult, CompareError> {
     if !(opts.window_s.is_finite() && opts.window_s > 0.0) {
         return Err(CompareError::Window);
     }
     let t0 = Instant::now();
-    let al = align::align(meas, opts)?;
+    let al = MeasuredTwin::new(meas, &opts.model, &opts.inputs)?.align(opts.model.effects)?;
     if al.channels.is_empty() {
         return Err(CompareError::NoChannels);
     }
@@ -202,13 +179,7 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
     let n = al.time_s.len();
     let dt_s = f64::from(al.dt_us) * 1e-6;
 
-    let limits = match &opts.data {
-        Some(d) => {
-            let maps = d.maps().map_err(|e| CompareError::Model(e.to_string()))?;
-            regions::Limits::of(&d.params(opts.rates, opts.coupling), &maps)
-        }
-        None => regions::Limits::of(&Params::thesis(opts.rates, opts.coupling), &Maps::builtin()),
-    };
+    let limits = opts.limits()?;
     let classes = regions::classify(&al, &opts.rules, &limits);
 
     // Inputs for the cross-correlation: the set points (the correlator adds their
@@ -220,7 +191,7 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
     let mut corr = residual::Correlator::new(&xin, n, dt_s, max_lag, opts.whiteness_lags);
     let window = ((opts.window_s / dt_s).round() as usize).max(1);
 
-    let mut partial: Vec<(align::Paired, Vec<f64>, Metrics)> = al
+    let mut partial: Vec<(Paired, Vec<f64>, Metrics)> = al
         .channels
         .iter()
         .map(|p| {
@@ -230,7 +201,7 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
                     *r = f64::NAN;
                 }
             }
-            let m = metrics::metrics(&al.time_s, &p.meas, &e);
+            let m = metrics::metrics(&p.name, &al.time_s, &p.meas, &e);
             (p.clone(), e, m)
         })
         .collect();
@@ -241,6 +212,10 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
         let b = budget::budget(&classes.classes, &e);
         let top = budget::top_combined(&b, opts.top_regions);
         let worst = spans::worst_spans(&al.time_s, &e, window, opts.spans);
+        let mut whiteness = st.whiteness;
+        if whiteness.verdict == residual::Verdict::Coloured && within_resolution(opts, &p.name, m.rmse) {
+            whiteness.verdict = residual::Verdict::Resolution;
+        }
         channels.push(ChannelResult {
             name: p.name,
             unit: p.unit,
@@ -252,7 +227,7 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
             budget: b,
             top_regions: top,
             worst_spans: worst,
-            whiteness: st.whiteness,
+            whiteness,
             cross: st.cross,
         });
     }
@@ -265,7 +240,7 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
     }
     notes.extend(classes.notes.iter().cloned());
     let missing: Vec<&str> =
-        model_core::MEASURED.iter().map(|c| c.name()).filter(|name| meas.signal(name).is_none()).collect();
+        MEASURED.iter().map(|c| c.name()).filter(|name| meas.signal(name).is_none()).collect();
     if !missing.is_empty() {
         notes.push(format!("not in the file: {}", missing.join(", ")));
     }
@@ -284,10 +259,11 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
             samples: n,
             duration_s: al.time_s.last().copied().unwrap_or(0.0) - al.time_s.first().copied().unwrap_or(0.0),
             inputs,
-            rates: opts.rates,
-            speed_target: opts.speed_target,
-            supply_v: opts.supply_v,
-            effects_on: !opts.effects.is_none(),
+            rates: opts.model.rates,
+            speed_target: opts.model.speed_target,
+            supply_v: opts.model.supply_v,
+            effects_on: !opts.model.effects.is_none(),
+            speed_window_s: opts.model.sensors.speed_window_s,
             window_s: opts.window_s,
         },
         time_s: al.time_s,

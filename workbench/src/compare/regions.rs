@@ -26,7 +26,7 @@
 use model_core::{Maps, Params};
 use serde::Serialize;
 
-use super::align::Aligned;
+use crate::twin::Aligned;
 
 /// Thresholds of the region rules.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -204,27 +204,6 @@ pub struct Classification {
     pub notes: Vec<String>,
 }
 
-/// Centred moving average over `w` samples (odd), edges averaged over what exists.
-fn moving_average(x: &[f64], w: usize) -> Vec<f64> {
-    let n = x.len();
-    let h = w / 2;
-    let mut prefix = Vec::with_capacity(n + 1);
-    prefix.push(0.0);
-    let mut acc = 0.0;
-    for v in x {
-        acc += v;
-        prefix.push(acc);
-    }
-    (0..n)
-        .map(|k| {
-            let a = k.saturating_sub(h);
-            let b = (k + h + 1).min(n);
-            let s = prefix.get(b).copied().unwrap_or(0.0) - prefix.get(a).copied().unwrap_or(0.0);
-            s / (b - a).max(1) as f64
-        })
-        .collect()
-}
-
 /// Replace non-finite samples by the last finite one (0 before any).
 fn fill_gaps(x: &[f64]) -> Vec<f64> {
     let mut last = 0.0;
@@ -255,7 +234,7 @@ pub fn classify(al: &Aligned, rules: &RegionRules, limits: &Limits) -> Classific
     };
     let dt = f64::from(al.dt_us) * 1e-6;
     let w = ((rules.smooth_s / dt).round() as usize).max(1) | 1;
-    let speed = moving_average(&moving_average(&fill_gaps(speed_raw), w), w);
+    let speed = crate::stats::moving_mean(&crate::stats::moving_mean(&fill_gaps(speed_raw), w / 2), w / 2);
     let h = (w / 2).max(1);
     let p_sut = measured(al, "P_SuT_inv");
     if p_sut.is_none() {
@@ -355,15 +334,5 @@ mod tests {
         assert!((55.0..=65.0).contains(&l.phase_current_a), "{l:?}");
         assert!(l.sut_power_w[0] > 4000.0 && l.sut_power_w[1] < -1000.0, "{l:?}");
         assert!(l.load_torque_nm.iter().all(|t| *t > 10.0), "{l:?}");
-    }
-
-    #[test]
-    fn moving_average_of_a_ramp_is_the_ramp_inside() {
-        let x: Vec<f64> = (0..50).map(f64::from).collect();
-        let y = moving_average(&x, 5);
-        for k in 2..48 {
-            assert!((y[k] - x[k]).abs() < 1e-12);
-        }
-        assert!((y[0] - 1.0).abs() < 1e-12);
     }
 }

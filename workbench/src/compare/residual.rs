@@ -50,8 +50,11 @@ pub enum Verdict {
     Negligible,
     /// Consistent with white noise: nothing left that the model could explain.
     White,
-    /// Structure left: model error, or correlated measurement noise (encoders).
+    /// Structure left: model error, or correlated measurement noise.
     Coloured,
+    /// Correlated, but no larger than the sensor's resolution (encoder counting): the
+    /// bench cannot tell a model error of this size from its own quantisation.
+    Resolution,
 }
 
 impl Verdict {
@@ -61,6 +64,7 @@ impl Verdict {
             Verdict::Negligible => "negligible residual",
             Verdict::White => "white (noise only)",
             Verdict::Coloured => "coloured (structure left)",
+            Verdict::Resolution => "within counting resolution",
         }
     }
 }

@@ -1,8 +1,10 @@
 //! The candidate parameters `diagnose` may fit: every parameter of every effect in
 //! `model_core::effects::LIBRARY`, with its neutral value, a finite-difference step
-//! sized to the effect's realistic magnitude, and physical bounds.
+//! sized to the effect's realistic magnitude, and physical bounds — all from the
+//! effect's declaration in `model_core::effects` (its `Fit`), so there is no table here
+//! to keep in step with the model.
 
-use model_core::effects::{Effects, EFFECT_PARAMS, LIBRARY};
+use model_core::effects::{Effects, EFFECTS};
 use model_core::Params;
 
 /// One fittable parameter.
@@ -28,7 +30,11 @@ impl ParamSpec {
     /// The smallest step in which the model can realise the parameter, at time step `dt`
     /// (0 where it is continuous).
     pub fn quantum(&self, dt: f64) -> f64 {
-        if self.effect == "controller_delay" {
+        let whole_steps = model_core::effects::effect(self.effect)
+            .and_then(|e| e.param(self.param))
+            .and_then(|p| p.fit)
+            .is_some_and(|f| f.whole_steps);
+        if whole_steps {
             dt
         } else {
             0.0
@@ -36,39 +42,23 @@ impl ParamSpec {
     }
 }
 
-/// `(neutral, delta, lower, upper, unit)` of a parameter; `None` for parameters not in
-/// the library. Neutral values of overrides come from the model's parameters.
-fn spec_numbers(effect: &str, param: &str, p: &Params) -> Option<(f64, f64, f64, f64, &'static str)> {
-    let k = f64::from(p.coupling_stiffness);
-    Some(match (effect, param) {
-        ("differential_friction", "coulomb_nm") => (0.0, 1.0, 0.0, 60.0, "N m"),
-        ("differential_friction", "viscous_nm_s_per_rad") => (0.0, 0.2, 0.0, 20.0, "N m s/rad"),
-        ("axle_friction_scale", _) => (1.0, 0.05, 0.1, 5.0, "-"),
-        ("gear_backlash", "backlash_deg") => (0.0, 0.5, 0.0, 20.0, "deg"),
-        ("controller_delay", "delay_s") => (0.0, 0.02, 0.0, 0.25, "s"),
-        ("inverter_rate_scale", _) => (1.0, 0.05, 0.2, 5.0, "-"),
-        ("coupling_stiffness", _) => (k, 0.2 * k, 300.0, 60_000.0, "N m/rad"),
-        ("coupling_damping", _) => (f64::from(p.coupling_damping), 2.0, 0.0, 300.0, "N m s/rad"),
-        ("inertia_scale", _) => (1.0, 0.05, 0.1, 5.0, "-"),
-        ("connector_resistance", _) => (f64::from(p.connector_resistance), 0.005, 0.0, 0.3, "ohm"),
-        ("supply_resistance", _) => (0.0, 0.005, 0.0, 0.5, "ohm"),
-        ("regen_efficiency", _) => (0.0, 0.05, 0.0, 0.9, "-"),
-        ("torque_sensor_offset", _) => (0.0, 1.0, -60.0, 60.0, "N m"),
-        ("torque_sensor_gain", _) | ("current_sensor_gain", _) => (1.0, 0.02, 0.5, 2.0, "-"),
-        ("speed_sensor_gain", _) => (1.0, 0.01, 0.5, 2.0, "-"),
-        _ => return None,
-    })
-}
-
-/// Every library parameter, in library order.
+/// Every library parameter, in library (declaration) order. Neutral values of
+/// overrides come from the model's parameters `p`.
 pub fn library(p: &Params) -> Vec<ParamSpec> {
     let mut out = Vec::new();
-    for id in LIBRARY {
-        let Some((effect, params)) = EFFECT_PARAMS.iter().find(|(e, _)| e == id) else { continue };
-        for param in params.iter() {
-            if let Some((neutral, delta, lower, upper, unit)) = spec_numbers(effect, param, p) {
-                out.push(ParamSpec { effect, param, neutral, delta, lower, upper, unit });
-            }
+    for e in EFFECTS.iter().filter(|e| e.in_library()) {
+        for d in e.params {
+            let Some(fit) = d.fit else { continue };
+            let neutral = f64::from(d.neutral(e.id, p));
+            out.push(ParamSpec {
+                effect: e.id,
+                param: d.name,
+                neutral,
+                delta: fit.delta(neutral),
+                lower: fit.lower,
+                upper: fit.upper,
+                unit: d.unit,
+            });
         }
     }
     out
@@ -78,7 +68,7 @@ pub fn library(p: &Params) -> Vec<ParamSpec> {
 pub fn with_values(base: &Effects, specs: &[&ParamSpec], values: &[f64]) -> Effects {
     let mut fx = *base;
     for (s, v) in specs.iter().zip(values) {
-        // Every spec comes from EFFECT_PARAMS, so `set` cannot refuse it.
+        // Every spec comes from the declarations, so `set` cannot refuse it.
         let _ = fx.set(s.effect, s.param, *v as f32);
     }
     fx
@@ -92,6 +82,41 @@ pub fn current_value(fx: &Effects, s: &ParamSpec) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use model_core::effects::LIBRARY;
+
+    /// The numbers derive from the declarations as the old hand-kept table had them.
+    #[test]
+    fn specs_follow_the_declarations() {
+        let p = Params::default();
+        let lib = library(&p);
+        let spec = |e: &str, q: &str| lib.iter().find(|s| s.effect == e && s.param == q).cloned();
+        let k = spec("coupling_stiffness", "stiffness_nm_per_rad").unwrap();
+        assert_eq!(
+            (k.neutral, k.delta),
+            (f64::from(p.coupling_stiffness), 0.2 * f64::from(p.coupling_stiffness))
+        );
+        assert_eq!(
+            spec("coupling_damping", "damping_nm_s_per_rad").unwrap().neutral,
+            f64::from(p.coupling_damping)
+        );
+        let d = spec("controller_delay", "delay_s").unwrap();
+        assert_eq!((d.neutral, d.delta, d.lower, d.upper, d.quantum(1e-3)), (0.0, 0.02, 0.0, 0.25, 1e-3));
+        let g = spec("speed_sensor_gain", "siemens").unwrap();
+        assert_eq!(
+            (g.neutral, g.delta, g.lower, g.upper, g.unit, g.quantum(1e-3)),
+            (1.0, 0.01, 0.5, 2.0, "-", 0.0)
+        );
+        assert!(spec("stribeck_friction", "peak_nm").is_none());
+        // Library order is declaration order.
+        let order: Vec<&str> = lib.iter().map(|s| s.effect).fold(Vec::new(), |mut v, e| {
+            if v.last() != Some(&e) {
+                v.push(e);
+            }
+            v
+        });
+        assert_eq!(order, LIBRARY);
+        assert_eq!(lib.len(), 30);
+    }
 
     #[test]
     fn library_covers_every_library_effect_and_round_trips() {

@@ -6,4 +6,13 @@ pub mod linalg;
 pub mod proof;
 pub mod twin;
 
+// The stages of `engine::diagnose`, in order.
+mod confounding;
+mod preparation;
+mod refit;
+mod selection;
+mod sensitivities;
+mod uncertainty;
+mod verdict;
+
 pub use engine::{diagnose, Diagnosis, Options, ProfileProbe, Twin, VerdictKind};

@@ -2,15 +2,13 @@
 //! judge the result the way the project's acceptance criteria do. Used by the
 //! hidden-effect tests and by `examples/hidden_sweep.rs` (success rates over seeds).
 
-use model_core::{Builtin, Config, Effects, Inputs, Profile, SetPoints, Simulation};
+use model_core::{Builtin, Config, Effects, Profile, Simulation};
 
 use super::engine::{diagnose, Diagnosis, Options, Twin, VerdictKind};
 use super::twin::{fitted_channels, BuiltinProbe, RecordedTwin};
+use crate::twin::{InputSource, MeasuredTwin, ModelOptions};
 use crate::vbench::chain::{measure, ChainOptions, Recorded};
 use crate::vbench::noise::NoiseModel;
-
-/// The bench's tachometer window (as `simrod bench` counts pulses).
-pub const SPEED_WINDOW_S: f64 = 0.1;
 
 /// A hidden-effect case: which effect, the range its magnitude is drawn from, and a
 /// profile that excites it.
@@ -22,27 +20,17 @@ pub struct Case {
     pub profile: (Builtin, f32, f32),
 }
 
-/// The library cases: one per effect, realistic magnitudes, exciting profiles.
+/// The library cases: one per effect, realistic magnitudes, exciting profiles — each
+/// effect's declared `Proof` (`model_core::effects`).
 pub fn library_cases() -> Vec<Case> {
-    use Builtin::*;
-    let c = |params: Vec<(&'static str, &'static str, f32, f32)>, profile| Case { params, profile };
-    vec![
-        c(vec![("differential_friction", "coulomb_nm", 2.0, 6.0)], (TP07, 1.0, 1.0)),
-        c(vec![("axle_friction_scale", "left", 1.15, 1.4)], (TP11, 0.79, 0.0)),
-        c(vec![("gear_backlash", "backlash_deg", 1.0, 4.0)], (TP07, 1.0, 1.0)),
-        c(vec![("controller_delay", "delay_s", 0.05, 0.15)], (TP14, 1.0, 0.0)),
-        c(vec![("inverter_rate_scale", "decel_fwd", 0.7, 0.9)], (TP14, 1.0, 0.0)),
-        c(vec![("coupling_stiffness", "stiffness_nm_per_rad", 6000.0, 12000.0)], (TP07, 1.0, 1.0)),
-        c(vec![("coupling_damping", "damping_nm_s_per_rad", 10.0, 30.0)], (TP07, 1.0, 1.0)),
-        c(vec![("inertia_scale", "sut", 1.2, 1.5)], (TP14, 1.0, 0.0)),
-        c(vec![("connector_resistance", "resistance_ohm", 0.025, 0.04)], (TP11, 0.79, 1.0)),
-        c(vec![("supply_resistance", "resistance_ohm", 0.005, 0.02)], (TP11, 0.79, 1.0)),
-        c(vec![("regen_efficiency", "extra_loss", 0.1, 0.3)], (TP07, 1.0, 1.0)),
-        c(vec![("torque_sensor_offset", "left_nm", 0.5, 2.0)], (TP11, 0.79, 0.0)),
-        c(vec![("torque_sensor_gain", "right", 1.02, 1.06)], (TP07, 1.0, 1.0)),
-        c(vec![("speed_sensor_gain", "sut_motor", 1.01, 1.03)], (TP11, 0.79, 0.0)),
-        c(vec![("current_sensor_gain", "dpu", 1.02, 1.06)], (TP07, 1.0, 1.0)),
-    ]
+    model_core::effects::EFFECTS
+        .iter()
+        .filter_map(|e| e.proof.map(|p| (e.id, p)))
+        .map(|(id, p)| Case {
+            params: vec![(id, p.param, p.lo, p.hi)],
+            profile: (p.profile, p.scales.0, p.scales.1),
+        })
+        .collect()
 }
 
 /// A uniform draw in `[lo, hi]` from a seed (SplitMix64).
@@ -76,21 +64,14 @@ pub fn bench_run(truth: &Effects, profile: (Builtin, f32, f32), seed: u64) -> Ru
     let channels = fitted_channels();
     let meas =
         channels.iter().map(|c| m.signal(c.name()).map(|s| s.values.clone()).unwrap_or_default()).collect();
-    let inputs = (0..rec.t_us.len())
-        .map(|k| Inputs {
-            sp: SetPoints {
-                throttle_pct: rec.setpoints[0][k],
-                load_pct: [rec.setpoints[1][k], rec.setpoints[2][k]],
-            },
-            supply_v: 24.0,
-        })
-        .collect();
-    Run { meas, twin: RecordedTwin { config: cfg, inputs, channels, speed_window_s: SPEED_WINDOW_S } }
+    // The twin sees the run as `simrod diagnose` sees the file: one path for both.
+    let twin = MeasuredTwin::new(&m, &ModelOptions::default(), &InputSource::Recorded).expect("a bench run");
+    Run { meas, twin: RecordedTwin { twin, channels } }
 }
 
 /// Diagnose a run blind (current model = the thesis model plus `base`).
 pub fn diagnose_run(run: &Run, base: &Effects) -> Result<Diagnosis, String> {
-    let probe = BuiltinProbe::standard(Config::default(), fitted_channels(), SPEED_WINDOW_S);
+    let probe = BuiltinProbe::standard(ModelOptions::default(), fitted_channels());
     let o = Options { base: *base, ..Options::default() };
     diagnose(&run.twin, &run.meas, &o, Some(&probe))
 }

@@ -13,9 +13,9 @@ use super::run::Run;
 use crate::datadir::ModelData;
 use crate::error::CmdError;
 use crate::measure::Signal;
+use crate::stats::Rng;
 use crate::vbench::chain::{measure, ChainOptions, Recorded};
 use crate::vbench::noise::NoiseModel;
-use crate::vbench::rng::Rng;
 
 /// One run of a campaign.
 #[derive(Debug, Clone, PartialEq)]

@@ -25,13 +25,13 @@
 use model_core::table::Table2;
 use model_core::Params;
 
-use super::lsq::{self, Row};
 use super::maps::shaft_load_torque;
 use super::plateau::Extraction;
-use super::report::{campaign_section, num, pm, sp_str, xy_chart, Report, XyLine, XyPoints, COLORS};
+use super::report::{campaign_section, num, pm, sp_str, xy_chart, Report, XyLine, XyPoints, PALETTE};
 use super::{Context, Identification};
 use crate::datadir::Map1;
 use crate::error::CmdError;
+use crate::linalg::{self, Row};
 
 /// Loads at or below this |set point| [%] count as zero.
 const ZERO_LOAD: f64 = 0.5;
@@ -112,7 +112,7 @@ fn slope(w: f64, f_t: f64, k: f64, w_t: f64) -> f64 {
 }
 
 /// Linear fit for a fixed threshold: `(f_t, k, d, chi2)`.
-fn fit_at(pts: &[Point], w_t: f64, drag: bool, guess: (f64, f64)) -> Option<(lsq::Fit, Vec<Row>)> {
+fn fit_at(pts: &[Point], w_t: f64, drag: bool, guess: (f64, f64)) -> Option<(linalg::Fit, Vec<Row>)> {
     let np = if drag { 3 } else { 2 };
     let mut g = guess;
     let mut last = None;
@@ -129,7 +129,7 @@ fn fit_at(pts: &[Point], w_t: f64, drag: bool, guess: (f64, f64)) -> Option<(lsq
                 Row { coef, y: p.c, sd: (p.sd_c * p.sd_c + s * s).sqrt().max(1e-9) }
             })
             .collect();
-        let f = lsq::wls(&rows, np, None)?;
+        let f = linalg::wls(&rows, np, None)?;
         g = (f.x[0], f.x[1]);
         last = Some((f, rows));
     }
@@ -204,7 +204,7 @@ pub fn fit(pts: &[Point]) -> Option<FrictionFit> {
                 Row { coef, y: 0.0, sd: r.sd }
             })
             .collect();
-        let jac = lsq::wls(&jrows, np, None)?;
+        let jac = linalg::wls(&jrows, np, None)?;
         let sd = |i: usize| jac.sd(i) * scale;
         [sd(0), sd(1), sd(2), if drag { sd(3) } else { f64::NAN }]
     } else {
@@ -495,9 +495,9 @@ fn plot(rep: &mut Report, name: &str, pts: &[Point], f: &FrictionFit, map: &Map1
             &format!("Axle friction {name}: flange torque − drag vs flange speed (± 2 s.e.)"),
             "axle speed [rpm]",
             "torque [N m]",
-            &[XyPoints { x: &x, y: &y, err: Some(&e), color: COLORS[0], label: "plateaus" }],
+            &[XyPoints { x: &x, y: &y, err: Some(&e), color: PALETTE[0], label: "plateaus" }],
             &[
-                XyLine { x: &mx, y: &my, color: COLORS[1], label: "identified map", dashed: false },
+                XyLine { x: &mx, y: &my, color: PALETTE[1], label: "identified map", dashed: false },
                 XyLine { x: &bx, y: &by, color: "#888", label: "base map", dashed: true },
             ],
         ),

@@ -36,17 +36,20 @@
 //! common to all transients), scaled up by the Birge ratio when the estimates scatter
 //! more than that allows.
 
+use std::cmp::Ordering::{Equal, Less};
+
 use model_core::drivetrain::RAD_S_PER_RPM;
 use model_core::{Maps, Params};
 
 use super::estimate::{sig, Estimate, Outcome, Plot};
 use super::report::{xy_chart, XyPoints};
 use super::transients::{
-    find, find_transients, line_fit, mad_sigma, mean, median, require, sample_dt, std_dev, steady_intervals,
-    throttle_pct, Transient, MIN_INTERVAL_S,
+    find, find_transients, line_fit, require, sample_dt, steady_intervals, throttle_pct, Transient,
+    MIN_INTERVAL_S,
 };
 use crate::error::FileError;
 use crate::measure::{Measurement, SETPOINT_LOAD_L, SETPOINT_LOAD_R};
+use crate::stats::{mad_sigma, mean, median, moving_mean, std_dev};
 
 /// Significance a transient's excess must reach (in its standard uncertainties).
 pub const MIN_SIGNIFICANCE: f64 = 3.0;
@@ -214,7 +217,7 @@ fn plateau_residuals(runs: &[RunData<'_>], opts: &InertiaOptions<'_>) -> [Vec<f6
 /// numbers in the note): the thesis' "just an idea of the real amount".
 fn precise_enough(e: Estimate) -> Estimate {
     match e.value {
-        Some(v) if !(e.sigma <= MAX_REL_SD * v.abs()) => {
+        Some(v) if !matches!(e.sigma.partial_cmp(&(MAX_REL_SD * v.abs())), Some(Less | Equal)) => {
             let why = format!(
                 "too uncertain: {} ± {} {} ({:.0} % > {:.0} %); {}",
                 sig(v),
@@ -238,8 +241,8 @@ fn combine(list: &mut [PerTransient]) -> Option<(f64, f64, usize, usize)> {
         return None;
     }
     let js: Vec<f64> = idx.iter().map(|&k| list[k].j).collect();
-    let m = median(&mut js.clone());
-    let s = mad_sigma(&js);
+    let m = median(&js).unwrap_or(f64::NAN);
+    let s = mad_sigma(&js).unwrap_or(f64::NAN);
     let mut outliers = 0;
     for &k in &idx {
         let e = &list[k];
@@ -566,22 +569,6 @@ fn sut_transients(
         }
     }
     (sut, shares)
-}
-
-/// Centred moving mean over `2 half + 1` samples (shortened at the ends).
-fn moving_mean(v: &[f64], half: usize) -> Vec<f64> {
-    let mut c = Vec::with_capacity(v.len() + 1);
-    c.push(0.0);
-    for x in v {
-        let last = c.last().copied().unwrap_or(0.0);
-        c.push(last + x);
-    }
-    (0..v.len())
-        .map(|k| {
-            let (a, b) = (k.saturating_sub(half), (k + half + 1).min(v.len()));
-            (c[b] - c[a]) / (b - a) as f64
-        })
-        .collect()
 }
 
 /// The SuT power map at the run's set points, through the model's rate limiter.

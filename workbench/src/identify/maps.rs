@@ -21,12 +21,12 @@
 use model_core::table::locate;
 use model_core::{throttle, Params};
 
-use super::lsq::{self, Row};
 use super::plateau::Extraction;
-use super::report::{campaign_section, num, pm, sp_str, xy_chart, Report, XyLine, XyPoints, COLORS};
+use super::report::{campaign_section, num, pm, sp_str, xy_chart, Report, XyLine, XyPoints, PALETTE};
 use super::{Context, Identification, MapFit};
 use crate::datadir::{Map1, Map2, ModelData};
 use crate::error::CmdError;
+use crate::linalg::{self, Row};
 
 /// Nodes determined to better than this share of the map's range count as observed.
 pub const OBSERVED_REL: f64 = 0.02;
@@ -123,7 +123,7 @@ pub fn fit_grid(base: &[f64], obs: &[Obs], basis: &dyn Fn(&Obs) -> Vec<(usize, f
     let mut observed = vec![false; n];
     for _ in 0..=rows.len() {
         let active: Vec<Row> = rows.iter().zip(&used).filter(|(_, u)| **u).map(|(r, _)| r.clone()).collect();
-        observed = match lsq::wls(&active, n, Some(&prior)) {
+        observed = match linalg::wls(&active, n, Some(&prior)) {
             Some(f) => (0..n).map(|i| f.sd(i) < tol).collect(),
             None => vec![false; n],
         };
@@ -166,7 +166,7 @@ pub fn fit_grid(base: &[f64], obs: &[Obs], basis: &dyn Fn(&Obs) -> Vec<(usize, f
     let prior2: Vec<(f64, f64)> = (0..n).filter(|i| observed[*i]).map(|i| (base[i], sigma_p)).collect();
     let mut values = base.to_vec();
     let mut sd = vec![f64::NAN; n];
-    let fit2 = if m > 0 { lsq::wls(&rows2, m, Some(&prior2)) } else { None };
+    let fit2 = if m > 0 { linalg::wls(&rows2, m, Some(&prior2)) } else { None };
     let dof = rows2.len().saturating_sub(m);
     let mut chi2 = 0.0;
     if let Some(f) = &fit2 {
@@ -354,9 +354,9 @@ pub fn speed_map(ctx: &Context<'_>) -> Result<Identification, CmdError> {
                 &format!("Speed map {name}: steady speed vs mapped throttle (± 2 s.e.)"),
                 "mapped throttle [%]",
                 "motor speed [rpm]",
-                &[XyPoints { x: &px, y: &py, err: Some(&pe), color: COLORS[0], label: "plateaus" }],
+                &[XyPoints { x: &px, y: &py, err: Some(&pe), color: PALETTE[0], label: "plateaus" }],
                 &[
-                    XyLine { x: &bx, y: &fit.values, color: COLORS[1], label: "identified", dashed: false },
+                    XyLine { x: &bx, y: &fit.values, color: PALETTE[1], label: "identified", dashed: false },
                     XyLine { x: &bx, y: &map1_values(base), color: "#888", label: "base", dashed: true },
                 ],
             ),
@@ -446,7 +446,7 @@ fn map2(
             .iter()
             .filter(|o| weights_1d(&base.y, o.y).iter().any(|(j, w)| *j == iy && *w > 0.5))
             .collect();
-        let color = COLORS[pts.len() % COLORS.len()];
+        let color = PALETTE[pts.len() % PALETTE.len()];
         pts.push((
             on_row.iter().map(|o| o.x).collect::<Vec<f64>>(),
             on_row.iter().map(|o| o.v).collect::<Vec<f64>>(),

@@ -4,9 +4,10 @@
 //!
 //! Every steady-state identification goes through [`plateau`] (automatic plateau
 //! detection, mean, rms, rejection with reasons), fits by weighted least squares with
-//! uncertainties ([`lsq`]), and hands back an [`Identification`]: the base data set with
-//! the identified files replaced (so the output directory is a complete model data
-//! directory for `--data-dir` or `model-core/data`) and a [`report::Report`].
+//! uncertainties ([`crate::linalg::wls`]), and hands back an [`Identification`]: the
+//! base data set with the identified files replaced (so the output directory is a
+//! complete model data directory for `--data-dir` or `model-core/data`) and a
+//! [`report::Report`].
 //!
 //! - [`maps`]: `speed-map`, `load-maps`, `power-maps` (grids of the base model's files,
 //!   least squares on the interpolation basis, unobserved cells keep the base value and
@@ -21,7 +22,6 @@
 
 pub mod campaign;
 pub mod friction;
-pub mod lsq;
 pub mod maps;
 pub mod plateau;
 pub mod progress;

@@ -26,6 +26,7 @@ use std::ops::Range;
 
 use super::progress::Progress;
 use super::run::{sources, Run};
+use crate::stats::{mean, median};
 
 /// How plateaus are found.
 #[derive(Debug, Clone, PartialEq)]
@@ -255,27 +256,6 @@ pub fn segments(run: &Run, opts: &PlateauOptions) -> Vec<Segment> {
     out
 }
 
-fn mean(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.iter().sum::<f64>() / v.len() as f64
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.retain(|x| x.is_finite());
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(f64::total_cmp);
-    let m = v.len() / 2;
-    if v.len() % 2 == 1 {
-        v[m]
-    } else {
-        0.5 * (v[m - 1] + v[m])
-    }
-}
-
 /// Where a channel settles within a segment.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Settle {
@@ -302,7 +282,7 @@ pub fn settle(v: &[f64], w: usize, band_sigma: f64, floor: f64) -> Option<Settle
     let diffs: Vec<f64> = (k - 1 - tail..k - 1).map(|j| (means[j + 1] - means[j]).abs()).collect();
     // Robust to correlated noise (encoder counts), but from few windows; the pooled
     // within-window scatter bounds it from below for white noise.
-    let robust = 1.4826 * median(diffs) / std::f64::consts::SQRT_2;
+    let robust = 1.4826 * median(&diffs).unwrap_or(0.0) / std::f64::consts::SQRT_2;
     let white = {
         let (mut ss, mut cnt) = (0.0, 0usize);
         for j in k - 1 - tail..k {
@@ -363,7 +343,7 @@ pub fn flat_top(v: &[f64]) -> Option<(f64, f64)> {
         return None;
     }
     let (lo, hi) = v.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
-    if !(hi > lo) {
+    if hi.is_nan() || lo.is_nan() || hi <= lo {
         return None; // exactly constant: noise-free data cannot be told from a stuck probe
     }
     for ext in [hi, lo] {
@@ -614,7 +594,7 @@ pub fn transients(run: &Run, channels: &[&str], opts: &PlateauOptions) -> Vec<Tr
 mod tests {
     use super::*;
     use crate::measure::{Measurement, Signal};
-    use crate::vbench::rng::Rng;
+    use crate::stats::Rng;
     use std::path::PathBuf;
 
     /// A run with set points `sp(t)` and one channel `y(t)` plus white noise.

@@ -1,36 +1,40 @@
 //! A one-line progress bar on stderr for long campaigns (loading dozens of 70 s runs
-//! takes a while). Drawn only when stderr is a terminal, so logs and pipes stay clean.
+//! takes a while), drawn by `indicatif`. Its stderr target draws nothing when stderr is
+//! not a terminal, so logs and pipes stay clean.
 
-use std::cell::Cell;
-use std::io::{IsTerminal, Write};
-use std::time::Instant;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-/// Width of the bar in characters.
-const BAR: usize = 30;
+/// Layout of the line: phase, bar, count, elapsed time, current item.
+const TEMPLATE: &str = "{prefix} [{bar:30}] {pos}/{len} {elapsed} {wide_msg}";
 
 /// A progress bar over `total` items.
 #[derive(Debug)]
 pub struct Progress {
+    bar: ProgressBar,
+    /// Whether phases started from this one draw.
     enabled: bool,
-    label: String,
-    total: usize,
-    done: Cell<usize>,
-    start: Instant,
 }
 
 impl Progress {
-    /// A bar shown when stderr is a terminal.
+    /// A bar on stderr (drawn only when stderr is a terminal).
     pub fn new(label: &str, total: usize) -> Self {
-        Self::with(std::io::stderr().is_terminal(), label, total)
+        Self::with(true, label, total)
     }
 
-    /// A bar that never draws (tests, library use).
+    /// A bar that never draws (tests, library use, `--quiet`).
     pub fn hidden() -> Self {
         Self::with(false, "", 0)
     }
 
     fn with(enabled: bool, label: &str, total: usize) -> Self {
-        Self { enabled, label: label.into(), total, done: Cell::new(0), start: Instant::now() }
+        let target = if enabled { ProgressDrawTarget::stderr() } else { ProgressDrawTarget::hidden() };
+        let style = ProgressStyle::with_template(TEMPLATE)
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("== ");
+        let bar = ProgressBar::with_draw_target(Some(total as u64), target)
+            .with_style(style)
+            .with_prefix(label.to_string());
+        Self { bar, enabled }
     }
 
     /// Start a new phase over `total` items (keeps the enabled state).
@@ -40,39 +44,18 @@ impl Progress {
 
     /// One item done; `item` names it.
     pub fn tick(&self, item: &str) {
-        let done = self.done.get() + 1;
-        self.done.set(done);
-        if self.enabled {
-            eprint!("\r{}", self.line(done, item));
-            let _ = std::io::stderr().flush();
-        }
+        self.bar.set_message(item.to_string());
+        self.bar.inc(1);
     }
 
     /// Clear the line.
     pub fn finish(&self) {
-        if self.enabled {
-            eprint!("\r{:width$}\r", "", width = BAR + 60);
-            let _ = std::io::stderr().flush();
-        }
+        self.bar.finish_and_clear();
     }
 
     /// Items done so far.
     pub fn done(&self) -> usize {
-        self.done.get()
-    }
-
-    fn line(&self, done: usize, item: &str) -> String {
-        let total = self.total.max(1);
-        let fill = (done.min(total) * BAR) / total;
-        let item: String = item.chars().take(28).collect();
-        format!(
-            "{} [{}{}] {done}/{} {:.0} s {item:<28}",
-            self.label,
-            "=".repeat(fill),
-            " ".repeat(BAR - fill),
-            self.total,
-            self.start.elapsed().as_secs_f64()
-        )
+        usize::try_from(self.bar.position()).unwrap_or(usize::MAX)
     }
 }
 
@@ -81,14 +64,17 @@ mod tests {
     use super::*;
 
     #[test]
-    fn identify_progress_counts_and_draws_a_bar() {
+    fn identify_progress_counts_and_stays_hidden() {
         let p = Progress::with(false, "runs", 4);
         p.tick("a.csv");
         p.tick("b.csv");
         assert_eq!(p.done(), 2);
-        let l = p.line(2, "b.csv");
-        assert!(l.starts_with("runs [==============="), "{l}");
-        assert!(l.contains("2/4"));
-        assert_eq!(Progress::hidden().phase("x", 3).line(3, "").matches('=').count(), BAR);
+        assert_eq!(p.bar.length(), Some(4));
+        assert_eq!(p.bar.message(), "b.csv");
+        assert!(p.bar.is_hidden());
+        let q = Progress::hidden().phase("x", 3);
+        assert!(q.bar.is_hidden() && q.done() == 0 && q.bar.prefix() == "x");
+        // The template parses (a typo would silently fall back to the default bar).
+        assert!(ProgressStyle::with_template(TEMPLATE).is_ok());
     }
 }

@@ -34,11 +34,11 @@ use model_core::{Maps, Params};
 use super::estimate::{sig, Estimate, Outcome, Plot};
 use super::report::{xy_chart, XyLine, XyPoints};
 use super::transients::{
-    find_transients, line_fit, mapped_pct, require, sample_dt, spread68, steady_intervals, throttle_pct,
-    Resampler, MIN_INTERVAL_S,
+    find_transients, line_fit, mapped_pct, require, sample_dt, steady_intervals, throttle_pct, MIN_INTERVAL_S,
 };
 use crate::error::FileError;
 use crate::measure::Measurement;
+use crate::stats::{spread68, Rng};
 
 /// Window over which one rate sample is fitted [s].
 const WINDOW_S: f64 = 0.2;
@@ -144,18 +144,11 @@ fn solve(samples: &[Sample], ls: Option<f64>, hs: f64) -> Option<Fit> {
     if m == 0 || samples.len() <= m {
         return None;
     }
-    let mut g = vec![0.0; m * m];
-    let mut b = vec![0.0; m];
-    for (r, s) in rows.iter().zip(samples) {
-        for (a, &i) in idx.iter().enumerate() {
-            b[a] += r[i] * s.r;
-            for (c, &j) in idx.iter().enumerate() {
-                g[a * m + c] += r[i] * r[j];
-            }
-        }
-    }
-    let inv = invert(&g, m)?;
-    let x: Vec<f64> = (0..m).map(|a| (0..m).map(|c| inv[a * m + c] * b[c]).sum()).collect();
+    let a: Vec<f64> = rows.iter().flat_map(|r| idx.iter().map(move |&i| r[i])).collect();
+    let y: Vec<f64> = samples.iter().map(|s| s.r).collect();
+    // Rank-revealing: a knee that leaves two columns collinear makes the fit undetermined.
+    let sol = crate::linalg::lstsq(&a, samples.len(), m, &y).filter(|f| f.full_rank())?;
+    let (x, inv) = (sol.x, sol.cov);
     let mut theta = [0.0; NP];
     for (a, &i) in idx.iter().enumerate() {
         theta[i] = x[a];
@@ -173,51 +166,11 @@ fn dot(a: &[f64; NP], b: &[f64; NP]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
-/// Inverse of a small symmetric positive definite matrix (Gauss–Jordan with pivoting);
-/// `None` when singular.
-fn invert(g: &[f64], n: usize) -> Option<Vec<f64>> {
-    let mut a = g.to_vec();
-    let mut inv = vec![0.0; n * n];
-    for i in 0..n {
-        inv[i * n + i] = 1.0;
-    }
-    let scale = (0..n).map(|i| a[i * n + i].abs()).fold(0.0, f64::max).max(1e-300);
-    for c in 0..n {
-        let p = (c..n).max_by(|&x, &y| a[x * n + c].abs().total_cmp(&a[y * n + c].abs()))?;
-        if a[p * n + c].abs() <= 1e-12 * scale {
-            return None;
-        }
-        if p != c {
-            for k in 0..n {
-                a.swap(p * n + k, c * n + k);
-                inv.swap(p * n + k, c * n + k);
-            }
-        }
-        let d = a[c * n + c];
-        for k in 0..n {
-            a[c * n + k] /= d;
-            inv[c * n + k] /= d;
-        }
-        for r in 0..n {
-            if r != c {
-                let f = a[r * n + c];
-                if f != 0.0 {
-                    for k in 0..n {
-                        a[r * n + k] -= f * a[c * n + k];
-                        inv[r * n + k] -= f * inv[c * n + k];
-                    }
-                }
-            }
-        }
-    }
-    Some(inv)
-}
-
 /// The best LS on a grid (coarse 1 %, then 0.05 %) between the lowest speed seen and HS.
 fn knee_fit(samples: &[Sample], hs: f64) -> Option<Fit> {
     let lo = samples.iter().map(|s| s.s).fold(f64::INFINITY, f64::min).max(0.5);
     let hi = samples.iter().map(|s| s.s).fold(0.0, f64::max).min(hs - 0.5);
-    if !(hi > lo + 1.0) {
+    if hi.is_nan() || lo.is_nan() || hi <= lo + 1.0 {
         return None;
     }
     let best_on = |grid: &mut dyn Iterator<Item = f64>| -> Option<Fit> {
@@ -267,7 +220,7 @@ type Collected = (Vec<Sample>, Vec<TransientRow>, Vec<String>);
 fn collect(runs: &[&Measurement], opts: &RatesOptions<'_>) -> Result<Collected, FileError> {
     let p = &opts.params;
     let typical = f64::from(p.typical_max_speed_rpm);
-    if !(typical > 0.0) {
+    if typical.is_nan() || typical <= 0.0 {
         return Err(FileError::whole("parameters.toml", "typical_max_speed_rpm must be > 0"));
     }
     let (full, low) = (f64::from(p.full_throttle_pct), f64::from(p.low_throttle_pct));
@@ -349,8 +302,7 @@ pub fn identify_rates(runs: &[&Measurement], opts: &RatesOptions<'_>) -> Result<
     let (samples, rows, notes) = collect(runs, opts)?;
     let mut out = Outcome { what: "inverter-rates".into(), notes, ..Outcome::default() };
     let secs = |r: f64| typical / r;
-    for d in 0..2 {
-        let dn = DIRS[d];
+    for (d, dn) in DIRS.into_iter().enumerate() {
         let base = p.rates.dir[d];
         let hs = f64::from(base.hs_pct);
         let mine: Vec<Sample> =
@@ -571,7 +523,7 @@ fn bootstrap(
             None => groups.push((key.0, key.1, vec![id])),
         }
     }
-    let mut rng = Resampler::new(seed);
+    let mut rng = Rng::new(seed, 0);
     let mut out = Vec::with_capacity(reps);
     for _ in 0..reps {
         let mut pick: Vec<Sample> = Vec::with_capacity(samples.len());

@@ -12,12 +12,12 @@
 //! χ²/dof when the scatter exceeds the plateaus' own noise). The thesis method is
 //! reported next to it, and the fit is repeated per section (loads 0 / loads on).
 
-use super::lsq::{self, Row};
 use super::plateau::Plateau;
-use super::report::{campaign_section, num, pm, sp_str, xy_chart, Report, XyLine, XyPoints, COLORS};
+use super::report::{campaign_section, num, pm, sp_str, xy_chart, Report, XyLine, XyPoints, PALETTE};
 use super::run::DV_CONN;
 use super::{Context, Identification};
 use crate::error::CmdError;
+use crate::linalg::{self, Row};
 
 /// Plateaus under this |I_DC| [A] are left out of the thesis-style ratio average.
 const RATIO_MIN_A: f64 = 5.0;
@@ -39,7 +39,7 @@ pub fn fit(points: &[(f64, f64, f64, f64)], r0: f64) -> Option<ResistanceFit> {
     let n = points.len();
     let (lo, hi) =
         points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.0), b.max(p.0)));
-    if n < 3 || !(hi - lo > 1.0) {
+    if n < 3 || (hi - lo).is_nan() || hi - lo <= 1.0 {
         return None;
     }
     let mut r = r0;
@@ -54,7 +54,7 @@ pub fn fit(points: &[(f64, f64, f64, f64)], r0: f64) -> Option<ResistanceFit> {
                 sd: (sv * sv + r * r * si * si).sqrt().max(1e-12),
             })
             .collect();
-        let fit = lsq::wls(&rows, 2, None)?;
+        let fit = linalg::wls(&rows, 2, None)?;
         r = fit.x[0];
         f = Some(fit);
     }
@@ -153,9 +153,9 @@ pub fn identify(ctx: &Context<'_>) -> Result<Identification, CmdError> {
             "Connector drop vs I_DC (plateau means ± 2 s.e.)",
             "I_DC [A]",
             "V_DC_busbars − V_DC [V]",
-            &[XyPoints { x: &x, y: &y, err: Some(&e), color: COLORS[0], label: "plateaus" }],
+            &[XyPoints { x: &x, y: &y, err: Some(&e), color: PALETTE[0], label: "plateaus" }],
             &[
-                XyLine { x: &fx, y: &fy, color: COLORS[1], label: "fit", dashed: false },
+                XyLine { x: &fx, y: &fy, color: PALETTE[1], label: "fit", dashed: false },
                 XyLine { x: &fx, y: &by, color: "#888", label: "base R", dashed: true },
             ],
         ),

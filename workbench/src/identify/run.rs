@@ -48,7 +48,7 @@ impl Run {
         let (Some(&t0), Some(&t1)) = (meas.time_s.first(), meas.time_s.last()) else {
             return Err(FileError::whole(&meas.source, "no samples"));
         };
-        if n < 2 || !(t1 > t0) {
+        if n < 2 || t0.is_nan() || t1.is_nan() || t1 <= t0 {
             return Err(FileError::whole(
                 &meas.source,
                 "fewer than 2 samples or a time axis that does not increase",

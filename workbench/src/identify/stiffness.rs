@@ -37,10 +37,11 @@
 
 use super::estimate::{sig, Estimate, Outcome, Plot};
 use super::report::{xy_chart, XyLine, XyPoints};
-use super::transients::{require, sample_dt, spread68, Resampler};
+use super::transients::{require, sample_dt};
 use crate::error::FileError;
 use crate::measure::units::factor_to;
 use crate::measure::Measurement;
+use crate::stats::{mad_sigma, spread68, Rng};
 
 /// Channel names (first is what `simrod bench --pulses` writes).
 pub const KISTLER_COUNT: &[&str] = &["inc:Kistler", "inc_Kistler", "inc:Kistler_R", "inc_Kistler_R"];
@@ -361,7 +362,7 @@ fn fit(points: &[TwistPoint]) -> Option<(f64, f64, f64)> {
         sxy += (p.torque - mt) * (p.phi - mp);
         n += 1;
     }
-    if !(sxx > 0.0) || n <= segs.len() + 1 {
+    if sxx.is_nan() || sxx <= 0.0 || n <= segs.len() + 1 {
         return None;
     }
     let c = sxy / sxx;
@@ -460,7 +461,7 @@ pub fn identify_stiffness(runs: &[&Measurement], o: &StiffnessOptions) -> Result
             })
             .collect()
     };
-    let rs = super::transients::mad_sigma(&resid).max(1e-12);
+    let rs = mad_sigma(&resid).unwrap_or(0.0).max(1e-12);
     let kept: Vec<TwistPoint> =
         pts.iter().zip(&resid).filter(|(_, r)| r.abs() <= 5.0 * rs).map(|(p, _)| *p).collect();
     let dropped = pts.len() - kept.len();
@@ -472,7 +473,7 @@ pub fn identify_stiffness(runs: &[&Measurement], o: &StiffnessOptions) -> Result
     };
     // Moving-block bootstrap.
     let blocks = make_blocks(&kept);
-    let mut rng = Resampler::new(0x57_1ff);
+    let mut rng = Rng::new(0x57_1ff, 0);
     let mut ks = Vec::with_capacity(REPLICATES);
     for _ in 0..REPLICATES {
         let mut pick = Vec::with_capacity(kept.len());

@@ -11,13 +11,14 @@
 //! command: its lag still shrinks, steepening the slope by a few %, at 0.1 s in the
 //! twin, by < 0.5 % from 0.2 s on) and ends 0.08 s before the
 //! speed comes within 10 % of the step (or 3 speed quanta) of its final value.
-//! Small helpers (channel look-up with clear errors, linear fits, robust statistics)
-//! live here too.
+//! Small helpers (channel look-up with clear errors, linear fits) live here too; the
+//! statistics are in [`crate::stats`].
 
 use model_core::{Maps, Params};
 
 use crate::error::FileError;
 use crate::measure::{Measurement, Signal, SETPOINT_THROTTLE};
+use crate::stats::{mean, median, median_filter};
 
 /// Shortest constant-throttle interval considered [s].
 pub const MIN_INTERVAL_S: f64 = 1.0;
@@ -84,7 +85,7 @@ pub fn throttle_pct(m: &Measurement, p: &Params, motor_rpm: &[f64]) -> Result<(V
     }
     let v = require(m, &["Throttle"], "the throttle steps (no `SuT Throttle` set-point channel either)")?;
     let k = f64::from(p.throttle_volts_per_pct);
-    if !(k > 0.0) {
+    if k.is_nan() || k <= 0.0 {
         return Err(FileError::whole(&m.source, "throttle_volts_per_pct must be > 0"));
     }
     let med = median_filter(v, 10);
@@ -100,19 +101,6 @@ pub fn throttle_pct(m: &Measurement, p: &Params, motor_rpm: &[f64]) -> Result<(V
         })
         .collect();
     Ok((out, 0.6))
-}
-
-/// Running median over `2 half + 1` samples (shortened at the ends).
-pub fn median_filter(v: &[f64], half: usize) -> Vec<f64> {
-    let n = v.len();
-    let mut buf = Vec::with_capacity(2 * half + 1);
-    (0..n)
-        .map(|k| {
-            buf.clear();
-            buf.extend_from_slice(&v[k.saturating_sub(half)..(k + half + 1).min(n)]);
-            median(&mut buf)
-        })
-        .collect()
 }
 
 /// Mapped throttle [%] for a signed set point, through the controller's input map.
@@ -207,7 +195,7 @@ pub fn line_fit(x: &[f64], y: &[f64]) -> Option<Line> {
         sxx += (a - mx) * (a - mx);
         sxy += (a - mx) * (b - my);
     }
-    if !(sxx > 0.0) {
+    if sxx.is_nan() || sxx <= 0.0 {
         return None;
     }
     let slope = sxy / sxx;
@@ -217,74 +205,11 @@ pub fn line_fit(x: &[f64], y: &[f64]) -> Option<Line> {
     Some(Line { intercept, slope, se_slope: resid_sd / sxx.sqrt(), resid_sd, x_mean: mx })
 }
 
-/// Median (sorts `v`); NaN for an empty slice.
-pub fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(|a, b| a.total_cmp(b));
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
-/// Median absolute deviation from the median, scaled to a standard deviation.
-pub fn mad_sigma(v: &[f64]) -> f64 {
-    let mut w = v.to_vec();
-    let m = median(&mut w);
-    let mut d: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
-    1.4826 * median(&mut d)
-}
-
-/// Mean of a slice (NaN when empty).
-pub fn mean(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        f64::NAN
-    } else {
-        v.iter().sum::<f64>() / v.len() as f64
-    }
-}
-
-/// Half the central 68 % range of `v` (a standard deviation that a few wild values
-/// do not inflate); 0 for fewer than 2 values.
-pub fn spread68(v: &[f64]) -> f64 {
-    let mut w: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
-    if w.len() < 2 {
-        return 0.0;
-    }
-    w.sort_by(|a, b| a.total_cmp(b));
-    let q = |p: f64| {
-        let x = p * (w.len() - 1) as f64;
-        let (i, f) = (x.floor() as usize, x - x.floor());
-        let a = w[i.min(w.len() - 1)];
-        let b = w[(i + 1).min(w.len() - 1)];
-        a + f * (b - a)
-    };
-    0.5 * (q(0.8413) - q(0.1587))
-}
-
-/// Sample standard deviation (0 for fewer than 2 values).
-pub fn std_dev(v: &[f64]) -> f64 {
-    if v.len() < 2 {
-        return 0.0;
-    }
-    let m = mean(v);
-    (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
-}
-
 /// The resolution of a (possibly pulse-counted) speed channel: the median size of the
 /// non-zero sample-to-sample changes. For a counted speed this is one pulse per window.
 pub fn quantum(v: &[f64]) -> f64 {
-    let mut d: Vec<f64> = v.windows(2).map(|w| (w[1] - w[0]).abs()).filter(|x| *x > 1e-9).collect();
-    let q = median(&mut d);
-    if q.is_finite() {
-        q
-    } else {
-        0.0
-    }
+    let d: Vec<f64> = v.windows(2).map(|w| (w[1] - w[0]).abs()).filter(|x| *x > 1e-9).collect();
+    median(&d).unwrap_or(0.0)
 }
 
 /// Is `v[a..b]` steady: the fitted change over the window within `tol`?
@@ -360,27 +285,6 @@ pub fn find_transients(
     (out, notes)
 }
 
-/// A small deterministic generator for bootstrap resampling (SplitMix64), so a report
-/// is the same every time it is made from the same runs.
-#[derive(Debug, Clone)]
-pub struct Resampler(u64);
-
-impl Resampler {
-    pub fn new(seed: u64) -> Self {
-        Self(seed)
-    }
-
-    /// Uniform index in `0..n` (`n > 0`).
-    pub fn index(&mut self, n: usize) -> usize {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        ((z >> 11) as f64 / (1u64 << 53) as f64 * n as f64) as usize % n.max(1)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -421,11 +325,8 @@ mod tests {
     }
 
     #[test]
-    fn robust_statistics() {
-        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
-        assert!((mad_sigma(&[1.0, 2.0, 3.0, 100.0]) - 1.4826).abs() < 1e-9);
+    fn speed_quantum() {
         assert_eq!(quantum(&[0.0, 0.0, 10.0, 10.0, 20.0]), 10.0);
-        let mut r = Resampler::new(1);
-        assert!((0..1000).all(|_| r.index(7) < 7));
+        assert_eq!(quantum(&[5.0, 5.0]), 0.0);
     }
 }

@@ -15,6 +15,7 @@
 use super::table::RawTable;
 use super::{LoadOptions, Measurement, Signal, GAP_CHANNEL};
 use crate::error::FileError;
+use crate::stats::median;
 
 /// Relative deviation from the median interval still counted as uniform sampling.
 pub const JITTER_TOL: f64 = 0.01;
@@ -31,16 +32,6 @@ pub struct Grid {
     pub n: usize,
     /// `(start, end)` times of the gaps (the samples either side are real).
     pub gaps: Vec<(f64, f64)>,
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 /// Check the time column; `Some(grid)` when the run must be resampled.
@@ -60,7 +51,7 @@ pub(crate) fn check_time(raw: &RawTable, t: &[f64], opts: &LoadOptions) -> Resul
         return Ok(None);
     }
     let dts: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    let m = median(dts.clone());
+    let Some(m) = median(&dts) else { return Ok(None) };
     if dts.iter().all(|d| (d - m).abs() <= JITTER_TOL * m) {
         return Ok(None);
     }
@@ -156,12 +147,6 @@ pub(crate) fn onto_grid(m: &Measurement, g: &Grid) -> Measurement {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn median_of_even_and_odd() {
-        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(vec![4.0, 1.0, 2.0, 3.0]), 2.5);
-    }
 
     #[test]
     fn interpolation_keeps_original_points_and_marks_gaps() {

@@ -1,5 +1,7 @@
-//! Hand-written SVG charts: no plotting or font library, `<text>` for labels, so the
-//! HTML report stays one self-contained file that any browser renders.
+//! The workbench's one plotter: hand-written SVG charts for the compare report (time
+//! traces, error budget, history) and the identification reports (x-y points with
+//! error bars and fitted curves). No plotting or font library, `<text>` for labels, so
+//! the HTML report stays one self-contained file that any browser renders.
 //!
 //! Long runs are drawn as a per-pixel-column min/max envelope: 70,000 samples become
 //! ~2 points per pixel and a one-sample spike still shows.
@@ -73,15 +75,11 @@ fn ticks(lo: f64, hi: f64, n: usize) -> Vec<f64> {
     v
 }
 
-/// Finite min and max over several slices; a flat or empty range is widened.
-fn y_range(series: &[Series<'_>]) -> (f64, f64) {
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for s in series {
-        for v in s.values.iter().filter(|v| v.is_finite()) {
-            lo = lo.min(*v);
-            hi = hi.max(*v);
-        }
-    }
+/// Finite min and max of `vals`, padded by 5 %; a flat or empty range is widened.
+fn padded_range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = vals
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
     if !lo.is_finite() {
         return (-1.0, 1.0);
     }
@@ -91,6 +89,11 @@ fn y_range(series: &[Series<'_>]) -> (f64, f64) {
     }
     let pad = 0.05 * (hi - lo);
     (lo - pad, hi + pad)
+}
+
+/// The y range of a line chart's series.
+fn y_range(series: &[Series<'_>]) -> (f64, f64) {
+    padded_range(series.iter().flat_map(|s| s.values.iter().copied()))
 }
 
 /// Min/max envelope of `y` over `cols` pixel columns, as a polyline point list.
@@ -403,6 +406,151 @@ pub fn history_chart(title: &str, y_label: &str, series: &[(String, Vec<Option<f
     s
 }
 
+/// Points with optional error bars, for [`xy_chart`].
+pub struct XyPoints<'a> {
+    pub x: &'a [f64],
+    pub y: &'a [f64],
+    /// Half-length of the error bar per point (e.g. 2 standard errors).
+    pub err: Option<&'a [f64]>,
+    pub color: &'a str,
+    pub label: &'a str,
+}
+
+/// A polyline, for [`xy_chart`].
+pub struct XyLine<'a> {
+    pub x: &'a [f64],
+    pub y: &'a [f64],
+    pub color: &'a str,
+    pub label: &'a str,
+    pub dashed: bool,
+}
+
+/// An x-y chart of measured points (with error bars) and curves (fits, model maps).
+pub fn xy_chart(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    points: &[XyPoints<'_>],
+    lines: &[XyLine<'_>],
+) -> String {
+    const W: f64 = 820.0;
+    const H: f64 = 440.0;
+    const MR: f64 = 20.0;
+    const MT: f64 = 44.0;
+    const MB: f64 = 42.0;
+    let err = |p: &XyPoints<'_>, i: usize| p.err.and_then(|e| e.get(i)).copied().unwrap_or(0.0);
+    let xs =
+        points.iter().flat_map(|p| p.x.iter().copied()).chain(lines.iter().flat_map(|l| l.x.iter().copied()));
+    let (x0, x1) = padded_range(xs);
+    let ys = points
+        .iter()
+        .flat_map(|p| p.y.iter().enumerate().flat_map(move |(i, y)| [y + err(p, i), y - err(p, i)]))
+        .chain(lines.iter().flat_map(|l| l.y.iter().copied()));
+    let (y0, y1) = padded_range(ys);
+    let (pw, ph) = (W - ML - MR, H - MT - MB);
+    let xp = |x: f64| ML + (x - x0) / (x1 - x0) * pw;
+    let yp = |y: f64| MT + (y1 - y) / (y1 - y0) * ph;
+    let mut s = String::new();
+    let _ = write!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {W} {H}" width="{W}" height="{H}" role="img" aria-label="{}">"#,
+        esc(title)
+    );
+    let _ = write!(s, r##"<rect x="{ML}" y="{MT}" width="{pw}" height="{ph}" fill="#fff" stroke="#999"/>"##);
+    for v in ticks(y0, y1, 6) {
+        let y = yp(v);
+        let _ = write!(
+            s,
+            r##"<line x1="{ML}" x2="{:.1}" y1="{y:.1}" y2="{y:.1}" stroke="#eee"/><text x="{:.1}" y="{:.1}" text-anchor="end" font-size="11">{}</text>"##,
+            ML + pw,
+            ML - 4.0,
+            y + 4.0,
+            tick_label(v)
+        );
+    }
+    for v in ticks(x0, x1, 6) {
+        let x = xp(v);
+        let _ = write!(
+            s,
+            r##"<line x1="{x:.1}" x2="{x:.1}" y1="{MT}" y2="{:.1}" stroke="#eee"/><text x="{x:.1}" y="{:.1}" text-anchor="middle" font-size="11">{}</text>"##,
+            MT + ph,
+            MT + ph + 14.0,
+            tick_label(v)
+        );
+    }
+    for l in lines {
+        let pts: Vec<String> =
+            l.x.iter()
+                .zip(l.y)
+                .filter(|(x, y)| x.is_finite() && y.is_finite())
+                .map(|(x, y)| format!("{:.1},{:.1}", xp(*x), yp(*y)))
+                .collect();
+        let dash = if l.dashed { r#" stroke-dasharray="5,4""# } else { "" };
+        let _ = write!(
+            s,
+            r#"<polyline fill="none" stroke="{}" stroke-width="1.6"{dash} points="{}"/>"#,
+            esc(l.color),
+            pts.join(" ")
+        );
+    }
+    for p in points {
+        for (i, (x, y)) in p.x.iter().zip(p.y).enumerate() {
+            if !(x.is_finite() && y.is_finite()) {
+                continue;
+            }
+            let e = err(p, i);
+            if e.is_finite() && e > 0.0 {
+                let _ = write!(
+                    s,
+                    r#"<line x1="{0:.1}" x2="{0:.1}" y1="{1:.1}" y2="{2:.1}" stroke="{3}"/>"#,
+                    xp(*x),
+                    yp(y + e),
+                    yp(y - e),
+                    esc(p.color)
+                );
+            }
+            let _ = write!(
+                s,
+                r#"<circle cx="{:.1}" cy="{:.1}" r="2.6" fill="{}"/>"#,
+                xp(*x),
+                yp(*y),
+                esc(p.color)
+            );
+        }
+    }
+    let _ = write!(
+        s,
+        r#"<text x="{ML}" y="16" font-size="13" font-weight="bold">{}</text><text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="11">{}</text><text x="14" y="{:.1}" font-size="11" transform="rotate(-90 14 {:.1})" text-anchor="middle">{}</text>"#,
+        esc(title),
+        ML + pw / 2.0,
+        H - 6.0,
+        esc(x_label),
+        MT + ph / 2.0,
+        MT + ph / 2.0,
+        esc(y_label)
+    );
+    let mut lx = ML;
+    let legend = points
+        .iter()
+        .map(|p| (p.label, p.color, true))
+        .chain(lines.iter().map(|l| (l.label, l.color, false)));
+    for (label, color, dot) in legend.filter(|l| !l.0.is_empty()) {
+        let mark = if dot {
+            format!(r#"<circle cx="{:.1}" cy="31" r="3" fill="{}"/>"#, lx + 5.0, esc(color))
+        } else {
+            format!(
+                r#"<line x1="{lx:.1}" x2="{:.1}" y1="31" y2="31" stroke="{}" stroke-width="2"/>"#,
+                lx + 12.0,
+                esc(color)
+            )
+        };
+        let _ = write!(s, r#"{mark}<text x="{:.1}" y="35" font-size="11">{}</text>"#, lx + 16.0, esc(label));
+        lx += 28.0 + 6.5 * label.chars().count() as f64;
+    }
+    s.push_str("</svg>");
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -445,6 +593,37 @@ mod tests {
         assert!(c.contains("a&lt;b") && !c.contains("NaN"));
         let b = budget_chart("t", &[Bar { label: "forward / steady", error: 0.7, samples: 0.2 }]);
         assert!(b.contains("70 % / 20 %"));
+    }
+
+    #[test]
+    fn xy_chart_draws_points_error_bars_and_lines() {
+        let svg = xy_chart(
+            "a<b",
+            "x",
+            "y",
+            &[XyPoints {
+                x: &[1.0, 2.0, 3.0],
+                y: &[3.0, f64::NAN, 2.0],
+                err: Some(&[0.5, 0.5, f64::NAN]),
+                color: "#000",
+                label: "p",
+            }],
+            &[XyLine { x: &[0.0, 3.0], y: &[0.0, 4.0], color: "#f00", label: "fit", dashed: true }],
+        );
+        assert!(svg.starts_with("<svg") && svg.ends_with("</svg>") && svg.contains("a&lt;b"));
+        assert!(!svg.contains("NaN") && !svg.contains("inf"));
+        // Two finite points, one error bar, one dashed line, and the legend's dot.
+        assert_eq!(svg.matches("<circle").count(), 3);
+        assert_eq!(svg.matches(r##"stroke="#000"/>"##).count(), 1);
+        assert!(svg.contains("stroke-dasharray") && svg.contains(">fit<"));
+        // Nothing to draw: still well formed.
+        let e = xy_chart("t", "x", "y", &[], &[]);
+        assert!(e.ends_with("</svg>") && !e.contains("NaN"));
+        assert_eq!(ticks(0.0, 10.0, 6).len(), 6);
+        assert_eq!(
+            (tick_label(-100.0), tick_label(2.5), tick_label(0.0)),
+            ("-100".into(), "2.5".into(), "0".into())
+        );
     }
 
     #[test]

@@ -11,7 +11,7 @@ use model_core::{RateSet, SpeedTarget};
 
 /// Columns padded to their widest cell: those listed in `left` (text) left-aligned,
 /// the others (numbers) right-aligned.
-fn columns(rows: &[Vec<String>], left: &[usize]) -> String {
+pub fn columns(rows: &[Vec<String>], left: &[usize]) -> String {
     let ncol = rows.iter().map(Vec::len).max().unwrap_or(0);
     let widths: Vec<usize> = (0..ncol)
         .map(|c| rows.iter().filter_map(|r| r.get(c)).map(|s| s.chars().count()).max().unwrap_or(0))
@@ -83,7 +83,7 @@ pub fn render(r: &CompareResult) -> String {
         let _ = writeln!(o, "  note: {n}");
     }
     let _ =
-        writeln!(o, "  residual = sim − meas; NRMSE = RMSE / (max − min of the measurement); * = derived");
+        writeln!(o, "  residual = sim − meas; NRMSE = RMSE / norm. (the measured range, or span/10: a tenth of the channel's operating span when the run moves it less); * = derived");
     o.push('\n');
 
     // Metrics.
@@ -93,6 +93,7 @@ pub fn render(r: &CompareResult) -> String {
         "unit".into(),
         "RMSE".into(),
         "NRMSE %".into(),
+        "norm.".into(),
         "fit %".into(),
         "r²".into(),
         "bias".into(),
@@ -111,6 +112,7 @@ pub fn render(r: &CompareResult) -> String {
             c.unit.clone(),
             num(m.rmse),
             num(100.0 * m.nrmse),
+            m.normalised_by.describe().into(),
             m.fit_percent.map_or("-".into(), |v| format!("{:.1}", v + 0.0)),
             m.r2.map_or("-".into(), |v| format!("{:.4}", v + 0.0)),
             num(m.bias),
@@ -120,7 +122,7 @@ pub fn render(r: &CompareResult) -> String {
         ]);
     }
     // The last column is text: left-align it by padding nothing (it is last).
-    o.push_str(&columns(&rows, &[0, 1, 9]));
+    o.push_str(&columns(&rows, &[0, 1, 4, 10]));
     o.push('\n');
     let worst_c = r.worst_channel().filter(|c| !negligible(c));
     match worst_c {
@@ -137,8 +139,14 @@ pub fn render(r: &CompareResult) -> String {
                 c.metrics.max_error_time_s
             );
         }
-        None => {
+        None if r.channels.iter().all(negligible) => {
             let _ = writeln!(o, "No channel has a residual above rounding: model and measurement agree.");
+        }
+        None => {
+            let _ = writeln!(
+                o,
+                "No channel has structure left: every residual is noise-like (white) or within its sensor's counting resolution; nothing for the model to explain."
+            );
         }
     }
     o.push('\n');
@@ -190,11 +198,12 @@ pub fn render(r: &CompareResult) -> String {
     let mut worst_span: Option<(f64, &ChannelResult, usize)> = None;
     for c in r.channels.iter().filter(|c| !negligible(c)) {
         let mut row = vec![name_of(c)];
+        let rank = c.structured(); // a noise-like residual's worst span is chance
         for (i, sp) in c.worst_spans.iter().enumerate() {
             row.push(format!("{:.2}–{:.2} s: {} {}", sp.start_s, sp.end_s, num(sp.rms), c.unit));
             // Rank spans across channels by RMS relative to the channel's normaliser.
             let rel = sp.rms / c.metrics.normaliser;
-            if i == 0 && worst_span.is_none_or(|(w, _, _)| rel > w) {
+            if rank && i == 0 && worst_span.is_none_or(|(w, _, _)| rel > w) {
                 worst_span = Some((rel, c, i));
             }
         }

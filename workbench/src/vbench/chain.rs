@@ -8,8 +8,8 @@ use model_core::{Channel, Simulation, MEASURED};
 
 use super::encoder::{windowed_rpm, Encoder};
 use super::noise::{Gauss, Miscount, NoiseModel};
-use super::rng::Rng;
 use crate::measure::{Measurement, Signal, SETPOINT_LOAD_L, SETPOINT_LOAD_R, SETPOINT_THROTTLE};
+use crate::stats::Rng;
 
 /// A twin run, only what the bench records: measured channels and set points.
 #[derive(Debug, Clone, PartialEq)]

@@ -24,8 +24,8 @@
 //!
 //! `--noise none` writes the model's values exactly (no noise, no quantisation): read
 //! back and rounded to f32 they are the model's bits. Random numbers: xoshiro256**
-//! seeded by SplitMix64 from `--seed` ([`rng`]), one stream per channel, so the same
-//! seed gives the same file and `--miscount` changes only SiemensEnc.
+//! seeded by SplitMix64 from `--seed` ([`crate::stats::Rng`]), one stream per channel,
+//! so the same seed gives the same file and `--miscount` changes only SiemensEnc.
 //!
 //! Rows: one per model step, at the end of the step (`t = dt, 2 dt, ...`), the timing
 //! convention `simrod compare` assumes.
@@ -33,7 +33,6 @@
 pub mod chain;
 pub mod encoder;
 pub mod noise;
-pub mod rng;
 
 #[cfg(test)]
 mod tests;

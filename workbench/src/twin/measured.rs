@@ -1,5 +1,5 @@
-//! Run the twin on exactly the inputs of a measured run and pair its outputs with the
-//! measured samples, one pair per comparable channel.
+//! A measured run as the twin sees it: the comparison grid, the set points on it, the
+//! measured channels on it, and the twin's channels paired with them.
 //!
 //! Measured values within half an f32 ulp of the twin's value count as equal to it
 //! (see `snap_to_f32`), so a bit-exact file compares to exactly zero.
@@ -13,17 +13,51 @@
 //! Model step: the measurement's mean sample interval when it is a whole number of
 //! microseconds inside `model_core::model::DT_US_RANGE` (whole: the difference to the
 //! nearest µs, accumulated over the run, is under 1 % of a step) and the grid is
-//! uniform (every interval within 1 % of the mean); otherwise the twin runs at 1 ms and the measured
-//! channels and set points are resampled onto a 1 ms grid by linear interpolation.
+//! uniform (every interval within 1 % of the mean); otherwise the twin runs at 1 ms and
+//! the measured channels and set points are resampled onto a 1 ms grid by linear
+//! interpolation.
 
 use model_core::model::DT_US_RANGE;
-use model_core::{Channel, Config, Inputs, Model, Params, Profile, ProfileSet, SetPoints, MEASURED};
+use model_core::{Builtin, Channel, Effects, Inputs, Profile, ProfileSet, SetPoints, MEASURED};
 
-use super::{CompareError, CompareOptions, InputSource};
+use super::ModelOptions;
 use crate::measure::{Measurement, GAP_CHANNEL, SETPOINT_LOAD_L, SETPOINT_LOAD_R, SETPOINT_THROTTLE};
 
 /// Step used when the measurement's own interval cannot be the model step.
 pub const FALLBACK_DT_US: u32 = 1000;
+
+/// Where the twin's set points come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum InputSource {
+    /// The file's set-point channels (`SuT Throttle`, `Dm Left`, `Dm Right`).
+    Recorded,
+    /// A built-in profile, scaled, for files without set-point channels.
+    Profile { which: Builtin, throttle_scale: f32, load_scale: f32 },
+}
+
+/// Why the twin cannot run on a measurement (all user-data problems).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TwinError {
+    #[error("the measurement has {0} samples; at least 2 are needed")]
+    TooShort(usize),
+    #[error("the time axis is not finite and strictly increasing")]
+    BadTime,
+    #[error("channel {channel} has {got} values for {want} time samples")]
+    Length { channel: String, got: usize, want: usize },
+    #[error(
+        "no set-point channel(s) {} in the file: compare with --profile NAME instead",
+        .0.join(", ")
+    )]
+    NoSetPoints(Vec<String>),
+    #[error("the file has none of the twin's measured channels")]
+    NoChannels,
+    #[error("the twin refused the configuration: {0}")]
+    Model(String),
+    #[error("profile: {0}")]
+    Profile(String),
+    #[error("--window-s must be finite and > 0")]
+    Window,
+}
 
 /// One channel, measured and simulated on the comparison grid.
 #[derive(Debug, Clone)]
@@ -36,7 +70,7 @@ pub struct Paired {
     pub derived: bool,
     /// Measured values.
     pub meas: Vec<f64>,
-    /// Twin values.
+    /// Twin values, as the bench records them.
     pub sim: Vec<f64>,
 }
 
@@ -65,6 +99,145 @@ pub struct Aligned {
     pub gaps: Vec<bool>,
 }
 
+/// A measured run prepared for the twin: grid, set points and measured channels, built
+/// once; [`MeasuredTwin::simulate`] then runs the twin on it with any effects.
+#[derive(Debug, Clone)]
+pub struct MeasuredTwin {
+    /// The twin (its `effects` are the default of [`MeasuredTwin::align`]).
+    pub model: ModelOptions,
+    /// [s] comparison grid (the file's time axis unless resampled).
+    pub time_s: Vec<f64>,
+    /// [µs] model step.
+    pub dt_us: u32,
+    /// Whether the measurement was resampled onto a 1 ms grid.
+    pub resampled: bool,
+    /// How the step was chosen, for the report.
+    pub step_note: String,
+    /// [%] set points on the grid: throttle, load L, load R.
+    pub set_points: [Vec<f64>; 3],
+    /// The model's inputs, one per sample.
+    pub inputs: Vec<Inputs>,
+    /// The file's measured channels on the grid, in `MEASURED` order.
+    pub measured: Vec<(Channel, Vec<f64>)>,
+    /// Samples inside interpolated gaps.
+    pub gaps: Vec<bool>,
+}
+
+impl MeasuredTwin {
+    /// Put `meas` on the comparison grid and take its set points from `source`.
+    pub fn new(meas: &Measurement, model: &ModelOptions, source: &InputSource) -> Result<Self, TwinError> {
+        let grid = choose_grid(&meas.time_s)?;
+        let time_s = grid.resample_to.clone().unwrap_or_else(|| meas.time_s.clone());
+        let set_points = match source {
+            InputSource::Recorded => recorded_set_points(meas, &grid)?,
+            InputSource::Profile { which, throttle_scale, load_scale } => profile_set_points(
+                model.profile_sets(*which),
+                *throttle_scale,
+                *load_scale,
+                &time_s,
+                grid.dt_us,
+            )?,
+        };
+        let inputs = (0..time_s.len())
+            .map(|k| {
+                let at = |v: &Vec<f64>| v.get(k).copied().unwrap_or(0.0) as f32;
+                Inputs {
+                    sp: SetPoints {
+                        throttle_pct: at(&set_points[0]),
+                        load_pct: [at(&set_points[1]), at(&set_points[2])],
+                    },
+                    supply_v: model.supply_v,
+                }
+            })
+            .collect();
+        let mut measured = Vec::new();
+        for &ch in MEASURED {
+            if let Some(v) = on_grid(meas, ch.name(), &grid)? {
+                measured.push((ch, v));
+            }
+        }
+        // Any trace of a gap (also after interpolation onto our grid) marks the sample.
+        let gaps = match on_grid(meas, GAP_CHANNEL, &grid)? {
+            Some(v) => v.iter().map(|g| *g != 0.0).collect(),
+            None => vec![false; time_s.len()],
+        };
+        Ok(Self {
+            model: model.clone(),
+            time_s,
+            dt_us: grid.dt_us,
+            resampled: grid.resample_to.is_some(),
+            step_note: grid.note,
+            set_points,
+            inputs,
+            measured,
+            gaps,
+        })
+    }
+
+    /// [s] model step.
+    pub fn dt_s(&self) -> f64 {
+        f64::from(self.dt_us) * 1e-6
+    }
+
+    /// The twin's `channels` with `effects`, as the bench records them, one value per
+    /// sample of the grid.
+    pub fn simulate(&self, effects: Effects, channels: &[Channel]) -> Result<Vec<Vec<f32>>, TwinError> {
+        self.model.run(self.dt_us, effects, &self.inputs, channels)
+    }
+
+    /// The measured channel `ch` on the grid, if the file has it.
+    pub fn measured(&self, ch: Channel) -> Option<&[f64]> {
+        self.measured.iter().find(|(c, _)| *c == ch).map(|(_, v)| v.as_slice())
+    }
+
+    /// The twin with `effects` paired with every measured channel, plus the derived
+    /// powers.
+    pub fn align(&self, effects: Effects) -> Result<Aligned, TwinError> {
+        let mut wanted: Vec<Channel> = self.measured.iter().map(|(c, _)| *c).collect();
+        let extra = [Channel::ILmlPhase, Channel::ILmrPhase, Channel::SuTMotorEnc];
+        wanted.extend(extra);
+        let mut sim = self.simulate(effects, &wanted)?;
+        let widen = |v: Vec<f32>| v.into_iter().map(f64::from).collect::<Vec<f64>>();
+        let tail = sim.split_off(self.measured.len());
+        let [phase_l, phase_r, speed]: [Vec<f32>; 3] = tail.try_into().map_err(|_| TwinError::NoChannels)?;
+        let mut channels: Vec<Paired> = self
+            .measured
+            .iter()
+            .zip(sim)
+            .map(|((ch, m), s)| {
+                let s = widen(s);
+                let mut m = m.clone();
+                snap_to_f32(&mut m, &s);
+                Paired {
+                    name: ch.name().to_string(),
+                    unit: ch.unit().to_string(),
+                    derived: false,
+                    meas: m,
+                    sim: s,
+                }
+            })
+            .collect();
+        let derived = derive_powers(&channels);
+        channels.extend(derived);
+        Ok(Aligned {
+            time_s: self.time_s.clone(),
+            dt_us: self.dt_us,
+            resampled: self.resampled,
+            step_note: self.step_note.clone(),
+            inputs: self.set_points.clone(),
+            channels,
+            phase_current: [widen(phase_l), widen(phase_r)],
+            sim_speed: widen(speed),
+            gaps: self.gaps.clone(),
+        })
+    }
+}
+
+/// Run the twin on `meas`'s inputs and pair the outputs with the measured channels.
+pub fn align(meas: &Measurement, model: &ModelOptions, source: &InputSource) -> Result<Aligned, TwinError> {
+    MeasuredTwin::new(meas, model, source)?.align(model.effects)
+}
+
 /// How the comparison grid relates to the file's.
 struct Grid {
     dt_us: u32,
@@ -73,21 +246,37 @@ struct Grid {
     note: String,
 }
 
-fn choose_grid(time: &[f64]) -> Result<Grid, CompareError> {
+/// The file's set-point channels on the grid; all three are needed.
+fn recorded_set_points(meas: &Measurement, grid: &Grid) -> Result<[Vec<f64>; 3], TwinError> {
+    let mut got = Vec::with_capacity(3);
+    let mut missing = Vec::new();
+    for name in [SETPOINT_THROTTLE, SETPOINT_LOAD_L, SETPOINT_LOAD_R] {
+        match on_grid(meas, name, grid)? {
+            Some(v) => got.push(v),
+            None => missing.push(name.to_string()),
+        }
+    }
+    if !missing.is_empty() {
+        return Err(TwinError::NoSetPoints(missing));
+    }
+    got.try_into().map_err(|_| TwinError::NoSetPoints(vec![SETPOINT_THROTTLE.into()]))
+}
+
+fn choose_grid(time: &[f64]) -> Result<Grid, TwinError> {
     let n = time.len();
     let (Some(&t0), Some(&t1)) = (time.first(), time.last()) else {
-        return Err(CompareError::TooShort(n));
+        return Err(TwinError::TooShort(n));
     };
     if n < 2 {
-        return Err(CompareError::TooShort(n));
+        return Err(TwinError::TooShort(n));
     }
     if !time.iter().all(|t| t.is_finite()) || t1 <= t0 {
-        return Err(CompareError::BadTime);
+        return Err(TwinError::BadTime);
     }
     let mean = (t1 - t0) / (n - 1) as f64;
     let uniform = time.windows(2).all(|w| ((w[1] - w[0]) - mean).abs() <= 0.01 * mean);
     if !time.windows(2).all(|w| w[1] > w[0]) {
-        return Err(CompareError::BadTime);
+        return Err(TwinError::BadTime);
     }
     let us = mean * 1e6;
     let rounded = us.round();
@@ -138,12 +327,12 @@ fn resample(t: &[f64], y: &[f64], grid: &[f64]) -> Vec<f64> {
 }
 
 /// A signal of the file on the comparison grid; a length mismatch is a user-data error.
-fn on_grid(meas: &Measurement, name: &str, grid: &Grid) -> Result<Option<Vec<f64>>, CompareError> {
+fn on_grid(meas: &Measurement, name: &str, grid: &Grid) -> Result<Option<Vec<f64>>, TwinError> {
     let Some(sig) = meas.signal(name) else {
         return Ok(None);
     };
     if sig.values.len() != meas.time_s.len() {
-        return Err(CompareError::Length {
+        return Err(TwinError::Length {
             channel: name.to_string(),
             got: sig.values.len(),
             want: meas.time_s.len(),
@@ -153,111 +342,6 @@ fn on_grid(meas: &Measurement, name: &str, grid: &Grid) -> Result<Option<Vec<f64
         None => sig.values.clone(),
         Some(g) => resample(&meas.time_s, &sig.values, g),
     }))
-}
-
-/// Run the twin on `meas`'s inputs and pair the outputs with the measured channels.
-pub fn align(meas: &Measurement, opts: &CompareOptions) -> Result<Aligned, CompareError> {
-    let grid = choose_grid(&meas.time_s)?;
-    let time_s = grid.resample_to.clone().unwrap_or_else(|| meas.time_s.clone());
-    let n = time_s.len();
-    let dt_us = grid.dt_us;
-
-    let set_points = match &opts.inputs {
-        InputSource::Recorded => {
-            let mut got = Vec::with_capacity(3);
-            let mut missing = Vec::new();
-            for name in [SETPOINT_THROTTLE, SETPOINT_LOAD_L, SETPOINT_LOAD_R] {
-                match on_grid(meas, name, &grid)? {
-                    Some(v) => got.push(v),
-                    None => missing.push(name.to_string()),
-                }
-            }
-            if !missing.is_empty() {
-                return Err(CompareError::NoSetPoints(missing));
-            }
-            let mut it = got.into_iter();
-            let (Some(a), Some(b), Some(c)) = (it.next(), it.next(), it.next()) else {
-                return Err(CompareError::NoSetPoints(vec![SETPOINT_THROTTLE.into()]));
-            };
-            [a, b, c]
-        }
-        InputSource::Profile { which, throttle_scale, load_scale } => {
-            let sets = opts.data.as_deref().and_then(|d| d.profile(which.name())).unwrap_or(which.sets());
-            profile_set_points(sets, *throttle_scale, *load_scale, &time_s, dt_us)?
-        }
-    };
-
-    let params = match &opts.data {
-        Some(d) => d.params(opts.rates, opts.coupling),
-        None => Params::thesis(opts.rates, opts.coupling),
-    };
-    let cfg = Config { dt_us, params, speed_target: opts.speed_target, effects: opts.effects };
-    let model = match &opts.data {
-        Some(d) => Model::with_maps(&cfg, d.maps().map_err(|e| CompareError::Model(e.to_string()))?),
-        None => Model::new(&cfg),
-    };
-    let mut model = model.map_err(|e| CompareError::Model(format!("{e:?}")))?;
-
-    // Which measured channels the file has, on the grid.
-    let mut present: Vec<(Channel, Vec<f64>)> = Vec::new();
-    for &ch in MEASURED {
-        if let Some(v) = on_grid(meas, ch.name(), &grid)? {
-            present.push((ch, v));
-        }
-    }
-    let mut sims: Vec<Vec<f64>> = present.iter().map(|_| Vec::with_capacity(n)).collect();
-    let mut phase = [Vec::with_capacity(n), Vec::with_capacity(n)];
-    let mut sim_speed = Vec::with_capacity(n);
-    let [thr, ll, lr] = &set_points;
-    for k in 0..n {
-        let sp = SetPoints {
-            throttle_pct: thr.get(k).copied().unwrap_or(0.0) as f32,
-            load_pct: [ll.get(k).copied().unwrap_or(0.0) as f32, lr.get(k).copied().unwrap_or(0.0) as f32],
-        };
-        let o = model.step(&Inputs { sp, supply_v: opts.supply_v });
-        for ((ch, _), s) in present.iter().zip(sims.iter_mut()) {
-            s.push(f64::from(o.get(*ch)));
-        }
-        phase[0].push(f64::from(o.get(Channel::ILmlPhase)));
-        phase[1].push(f64::from(o.get(Channel::ILmrPhase)));
-        sim_speed.push(f64::from(o.get(Channel::SuTMotorEnc)));
-    }
-
-    let mut channels: Vec<Paired> = present
-        .into_iter()
-        .zip(sims)
-        .map(|((ch, mut m), s)| {
-            snap_to_f32(&mut m, &s);
-            (ch, m, s)
-        })
-        .map(|(ch, m, s)| Paired {
-            name: ch.name().to_string(),
-            unit: ch.unit().to_string(),
-            derived: false,
-            meas: m,
-            sim: s,
-        })
-        .collect();
-    let derived = derive_powers(&channels);
-    channels.extend(derived);
-
-    // Any trace of a gap (also after interpolation onto our grid) marks the sample.
-    let gaps = match on_grid(meas, GAP_CHANNEL, &grid)? {
-        Some(v) => v.iter().map(|g| *g != 0.0).collect(),
-        None => vec![false; n],
-    };
-
-    Ok(Aligned {
-        time_s,
-        dt_us,
-        resampled: grid.resample_to.is_some(),
-        step_note: grid.note,
-        inputs: set_points,
-        channels,
-        phase_current: phase,
-        sim_speed,
-        gaps,
-    })
 }
 
 /// Measured values that round to the twin's f32 value *are* that value: the twin
@@ -280,9 +364,9 @@ fn profile_set_points(
     load_scale: f32,
     time_s: &[f64],
     dt_us: u32,
-) -> Result<[Vec<f64>; 3], CompareError> {
-    let profile = Profile::new(sets, throttle_scale, load_scale)
-        .map_err(|e| CompareError::Profile(format!("{e:?}")))?;
+) -> Result<[Vec<f64>; 3], TwinError> {
+    let profile =
+        Profile::new(sets, throttle_scale, load_scale).map_err(|e| TwinError::Profile(format!("{e:?}")))?;
     let mut out = [
         Vec::with_capacity(time_s.len()),
         Vec::with_capacity(time_s.len()),
@@ -367,9 +451,9 @@ mod tests {
 
     #[test]
     fn bad_time_axes_are_errors_not_panics() {
-        assert!(matches!(choose_grid(&[]), Err(CompareError::TooShort(0))));
-        assert!(matches!(choose_grid(&[1.0]), Err(CompareError::TooShort(1))));
-        assert!(matches!(choose_grid(&[0.0, f64::NAN, 2.0]), Err(CompareError::BadTime)));
-        assert!(matches!(choose_grid(&[0.0, 0.002, 0.001, 0.003]), Err(CompareError::BadTime)));
+        assert!(matches!(choose_grid(&[]), Err(TwinError::TooShort(0))));
+        assert!(matches!(choose_grid(&[1.0]), Err(TwinError::TooShort(1))));
+        assert!(matches!(choose_grid(&[0.0, f64::NAN, 2.0]), Err(TwinError::BadTime)));
+        assert!(matches!(choose_grid(&[0.0, 0.002, 0.001, 0.003]), Err(TwinError::BadTime)));
     }
 }

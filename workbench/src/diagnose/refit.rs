@@ -1,0 +1,413 @@
+//! Stage 4: confirmation on the real (nonlinear) simulator. Levenberg–Marquardt from the
+//! linear estimate; for one-parameter effects a coarse grid before and a fine profile
+//! scan after, since a rugged objective (backlash events, a clipping limit) hides narrow
+//! basins from a local search. The error a refit removes is measured, not predicted.
+
+use model_core::Effects;
+
+use super::engine::{Candidate, Options, Twin};
+use super::library::{with_values, ParamSpec};
+use super::linalg::solve_spd;
+use super::preparation::{energy, region_errors, rmse, run_all, Prepared};
+use super::sensitivities::check_shape;
+
+/// Most Levenberg–Marquardt iterations (each: one Jacobian, up to [`DAMPING_TRIES`] steps).
+const MAX_ITERATIONS: usize = 8;
+/// Damping increases tried per iteration before giving up.
+const DAMPING_TRIES: usize = 6;
+
+/// A refit on the simulator.
+pub(super) struct Fit {
+    /// Fitted parameter values.
+    pub values: Vec<f64>,
+    /// Simulated channels at `values`.
+    pub sim: Vec<Vec<f32>>,
+    /// `jac[parameter][channel][fit sample]`: output change per unit of the parameter.
+    pub jac: Vec<Vec<Vec<f64>>>,
+    /// Weighted squared error at `values`.
+    pub energy: f64,
+    /// One-parameter fits: (value, energy) of a fine scan around the optimum.
+    pub profile: Vec<(f64, f64)>,
+}
+
+/// The bounded parameters of one refit, and how to simulate them.
+struct Problem<'a> {
+    twin: &'a dyn Twin,
+    p: &'a Prepared,
+    o: &'a Options,
+    specs: &'a [&'a ParamSpec],
+}
+
+impl Problem<'_> {
+    fn clamp(&self, v: &mut [f64]) {
+        for (x, s) in v.iter_mut().zip(self.specs) {
+            *x = x.clamp(s.lower, s.upper);
+        }
+    }
+
+    fn effects(&self, theta: &[f64]) -> Effects {
+        with_values(&self.o.base, self.specs, theta)
+    }
+
+    /// Simulate `theta`; `None` if the twin fails or returns the wrong shape.
+    fn run(&self, theta: &[f64]) -> Option<Vec<Vec<f32>>> {
+        let y = self.twin.run(&self.effects(theta)).ok()?;
+        check_shape(self.p, &y).ok().map(|()| y)
+    }
+
+    /// Simulate each of `thetas` in parallel.
+    fn run_many(&self, thetas: &[Vec<f64>]) -> Vec<Option<Vec<Vec<f32>>>> {
+        let jobs: Vec<Effects> = thetas.iter().map(|t| self.effects(t)).collect();
+        run_all(self.twin, &jobs, self.o.threads)
+            .into_iter()
+            .map(|r| r.ok().filter(|y| check_shape(self.p, y).is_ok()))
+            .collect()
+    }
+
+    /// Forward-difference step of parameter `i` at `v`: half the sensitivity step (closer
+    /// to linear), backwards at the upper bound.
+    fn step(&self, i: usize, v: f64) -> f64 {
+        let s = self.specs[i];
+        if v + 0.5 * s.delta <= s.upper {
+            0.5 * s.delta
+        } else {
+            -0.5 * s.delta
+        }
+    }
+}
+
+/// The current point of the search.
+struct State {
+    theta: Vec<f64>,
+    sim: Vec<Vec<f32>>,
+    energy: f64,
+}
+
+/// Levenberg–Marquardt on the simulator for the parameters `specs`, from `start`.
+/// `None` if the simulator fails at the start or while taking the Jacobian.
+pub(super) fn refit(
+    twin: &dyn Twin,
+    p: &Prepared,
+    o: &Options,
+    specs: &[&ParamSpec],
+    start: &[f64],
+) -> Option<Fit> {
+    let pb = Problem { twin, p, o, specs };
+    let mut theta = start.to_vec();
+    pb.clamp(&mut theta);
+    let sim = pb.run(&theta)?;
+    let mut st = State { energy: energy(p, &sim), theta, sim };
+    if let [s0] = specs {
+        coarse_grid(&pb, s0, &mut st);
+    }
+    let mut lambda = 1e-3;
+    let mut jac = Vec::new();
+    for _ in 0..MAX_ITERATIONS {
+        jac = jacobian(&pb, &st)?;
+        let (g, b) = normal_equations(p, &jac, &st.sim);
+        if !damped_step(&pb, &g, &b, &mut lambda, &mut st)? {
+            break;
+        }
+    }
+    let mut fit = Fit { values: st.theta, sim: st.sim, jac, energy: st.energy, profile: Vec::new() };
+    if let [s0] = specs {
+        profile_scan(&pb, s0, &mut fit);
+    }
+    Some(fit)
+}
+
+/// One parameter: a coarse grid over its bounds (logarithmic over a wide positive
+/// range), so that a non-smooth or strongly nonlinear response cannot trap the local
+/// search near the linear estimate. Moves `st` to the best point.
+fn coarse_grid(pb: &Problem, s0: &ParamSpec, st: &mut State) {
+    let (lo, hi) = (s0.lower, s0.upper);
+    let grid: Vec<f64> = if lo > 0.0 && hi / lo > 20.0 {
+        (0..16).map(|i| lo * (hi / lo).powf(f64::from(i) / 15.0)).collect()
+    } else {
+        (0..16).map(|i| lo + (hi - lo) * f64::from(i) / 15.0).collect()
+    };
+    let thetas: Vec<Vec<f64>> = grid.iter().map(|v| vec![*v]).collect();
+    let runs = pb.run_many(&thetas);
+    for (theta, y) in thetas.into_iter().zip(runs) {
+        let Some(y) = y else { continue };
+        let ey = energy(pb.p, &y);
+        if ey < st.energy {
+            *st = State { theta, sim: y, energy: ey };
+        }
+    }
+}
+
+/// `jac[parameter][channel][fit sample]` by forward differences at `st`.
+fn jacobian(pb: &Problem, st: &State) -> Option<Vec<Vec<Vec<f64>>>> {
+    let thetas: Vec<Vec<f64>> = (0..pb.specs.len())
+        .map(|i| {
+            let mut t = st.theta.clone();
+            t[i] += pb.step(i, st.theta[i]);
+            t
+        })
+        .collect();
+    let runs = pb.run_many(&thetas);
+    let mut jac = Vec::with_capacity(pb.specs.len());
+    for (i, y) in runs.into_iter().enumerate() {
+        let y = y?;
+        let h = pb.step(i, st.theta[i]);
+        jac.push(
+            y.iter()
+                .zip(&st.sim)
+                .map(|(a, b)| pb.p.idx.iter().map(|&t| (f64::from(a[t]) - f64::from(b[t])) / h).collect())
+                .collect(),
+        );
+    }
+    Some(jac)
+}
+
+/// `J'WJ` (row-major) and `J'W r` of the residual of `sim`.
+fn normal_equations(p: &Prepared, jac: &[Vec<Vec<f64>>], sim: &[Vec<f32>]) -> (Vec<f64>, Vec<f64>) {
+    let n = jac.len();
+    let mut g = vec![0.0; n * n];
+    let mut b = vec![0.0; n];
+    for (c, w) in p.weights.iter().enumerate() {
+        for (k, &t) in p.idx.iter().enumerate() {
+            let r = p.meas[c][t] - f64::from(sim[c][t]);
+            for i in 0..n {
+                let ji = jac[i][c][k];
+                b[i] += w * ji * r;
+                for j in 0..=i {
+                    g[i * n + j] += w * ji * jac[j][c][k];
+                }
+            }
+        }
+    }
+    for i in 0..n {
+        for j in 0..i {
+            g[j * n + i] = g[i * n + j];
+        }
+    }
+    (g, b)
+}
+
+/// Try steps of increasing damping until one lowers the error; move `st` there.
+/// `Some(true)` if it moved by more than a relative 1e-6 of the error (worth another
+/// iteration), `None` if the damped system cannot be solved.
+fn damped_step(pb: &Problem, g: &[f64], b: &[f64], lambda: &mut f64, st: &mut State) -> Option<bool> {
+    let n = b.len();
+    for _ in 0..DAMPING_TRIES {
+        let mut gl = g.to_vec();
+        for i in 0..n {
+            gl[i * n + i] *= 1.0 + *lambda;
+        }
+        let step = solve_spd(&gl, b, 1e-12)?;
+        let mut cand: Vec<f64> = st.theta.iter().zip(&step).map(|(a, d)| a + d).collect();
+        pb.clamp(&mut cand);
+        let Some(s2) = pb.run(&cand) else { return Some(false) };
+        let e2 = energy(pb.p, &s2);
+        if std::env::var_os("SIMROD_DIAG_DEBUG").is_some() {
+            eprintln!(
+                "  LM {}: theta {:?} e {:.3} -> cand {cand:?} e2 {e2:.3} lambda {:e}",
+                pb.specs[0].effect, st.theta, st.energy, *lambda
+            );
+        }
+        if e2 < st.energy {
+            let rel = (st.energy - e2) / st.energy.max(1e-300);
+            *st = State { theta: cand, sim: s2, energy: e2 };
+            *lambda = (*lambda * 0.3).max(1e-9);
+            return Some(rel > 1e-6);
+        }
+        *lambda *= 10.0;
+    }
+    Some(false)
+}
+
+/// Fine scan around a one-parameter optimum (±25 %, or ±4 steps for small values): moves
+/// to any better point and keeps the scan for a profile interval.
+fn profile_scan(pb: &Problem, s0: &ParamSpec, fit: &mut Fit) {
+    let v0 = fit.values[0];
+    let half = (0.25 * v0.abs()).max(4.0 * s0.delta * 0.25);
+    let (lo, hi) = ((v0 - half).max(s0.lower), (v0 + half).min(s0.upper));
+    let grid: Vec<Vec<f64>> = (0..=24).map(|i| vec![lo + (hi - lo) * f64::from(i) / 24.0]).collect();
+    let mut prof = vec![(v0, fit.energy)];
+    for (v, y) in grid.iter().zip(pb.run_many(&grid)) {
+        let Some(y) = y else { continue };
+        let e = energy(pb.p, &y);
+        prof.push((v[0], e));
+        if e < fit.energy {
+            fit.energy = e;
+            fit.values = v.clone();
+            fit.sim = y;
+        }
+    }
+    prof.sort_by(|a, b| a.0.total_cmp(&b.0));
+    fit.profile = prof;
+}
+
+/// Write a refit into its candidate: values and their uncertainty `std`, the reduction
+/// measured on the simulator, per-channel and per-region errors. Significant: some
+/// parameter moved from its start by more than 2 σ (never with an undetermined σ).
+pub(super) fn confirm(
+    cand: &mut Candidate,
+    fit: &Fit,
+    std: &[f64],
+    specs: &[&ParamSpec],
+    p: &Prepared,
+    o: &Options,
+) {
+    cand.confirmed_reduction = Some(((p.e0 - fit.energy) / p.excess).clamp(0.0, 1.0));
+    cand.significant = false;
+    for ((fp, &v), (sd, s)) in cand.params.iter_mut().zip(&fit.values).zip(std.iter().zip(specs)) {
+        fp.value = v;
+        fp.std = *sd;
+        fp.ci95 = ((v - 1.96 * sd).max(s.lower), (v + 1.96 * sd).min(s.upper));
+        if sd.is_finite() && (v - fp.start).abs() > 2.0 * sd && (v - fp.start).abs() > 1e-6 * s.delta {
+            cand.significant = true;
+        }
+    }
+    for (c, ch) in cand.channels.iter_mut().enumerate() {
+        let s: Vec<f64> = fit.sim[c].iter().map(|v| f64::from(*v)).collect();
+        ch.rmse_confirmed = Some(rmse(&p.meas[c], &s, &p.idx));
+    }
+    let confirmed =
+        region_errors(p, &o.regions, |c, k| f64::from(fit.sim[c][p.idx[k]]) - p.base[c][p.idx[k]]);
+    for (rc, conf) in cand.regions.iter_mut().zip(confirmed) {
+        rc.confirmed = Some(conf.predicted);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use model_core::Channel;
+
+    /// `y(t) = A exp(-k t)`, with `A` and `k` carried in the differential-friction slots
+    /// of the effects (any two library parameters would do).
+    struct Decay {
+        channels: Vec<Channel>,
+        n: usize,
+    }
+
+    const DT: f64 = 0.01;
+
+    fn param(fx: &Effects, name: &str) -> f64 {
+        fx.get("differential_friction", name).ok().flatten().map_or(0.0, f64::from)
+    }
+
+    impl Twin for Decay {
+        fn channels(&self) -> &[Channel] {
+            &self.channels
+        }
+        fn samples(&self) -> usize {
+            self.n
+        }
+        fn dt_s(&self) -> f64 {
+            DT
+        }
+        fn run(&self, fx: &Effects) -> Result<Vec<Vec<f32>>, String> {
+            let (a, k) = (param(fx, "coulomb_nm"), param(fx, "viscous_nm_s_per_rad"));
+            Ok(vec![(0..self.n).map(|i| (a * (-k * i as f64 * DT).exp()) as f32).collect()])
+        }
+    }
+
+    fn spec(param: &'static str, upper: f64) -> ParamSpec {
+        ParamSpec {
+            effect: "differential_friction",
+            param,
+            neutral: 0.0,
+            delta: 0.01,
+            lower: 0.0,
+            upper,
+            unit: "-",
+        }
+    }
+
+    /// Exact data from `A = 5`, `k = 1.5` (both exact in `f32`, the effects' precision).
+    fn setup(n: usize) -> (Decay, Prepared) {
+        let twin = Decay { channels: vec![Channel::Throttle], n };
+        let meas = vec![(0..n).map(|i| 5.0 * (-1.5 * i as f64 * DT).exp()).collect::<Vec<f64>>()];
+        let base_sim = vec![vec![0.0f32; n]];
+        let p = Prepared {
+            meas,
+            base: vec![vec![0.0; n]],
+            base_sim,
+            weights: vec![1.0],
+            noise: vec![("Throttle", 1.0)],
+            idx: (0..n).collect(),
+            stride: 1,
+            e0: 0.0,
+            e_noise: n as f64,
+            excess: 1.0,
+            excess_ratio: 0.0,
+        };
+        (twin, p)
+    }
+
+    /// Levenberg–Marquardt on a known nonlinear function: both parameters of an
+    /// exponential decay from 40 % and 33 % off, to 1e-6 relative (the effects hold `f32`,
+    /// whose resolution is 1e-7 relative; the outputs' rounding moves the optimum less).
+    #[test]
+    fn lm_fits_an_exponential_decay() {
+        let (twin, p) = setup(500);
+        let o = Options { threads: 2, ..Options::default() };
+        let (sa, sk) = (spec("coulomb_nm", 60.0), spec("viscous_nm_s_per_rad", 20.0));
+        let fit = refit(&twin, &p, &o, &[&sa, &sk], &[3.0, 1.0]).expect("the twin runs");
+        assert!((fit.values[0] / 5.0 - 1.0).abs() < 1e-6, "A = {}", fit.values[0]);
+        assert!((fit.values[1] / 1.5 - 1.0).abs() < 1e-6, "k = {}", fit.values[1]);
+        assert!(fit.energy < 1e-9, "energy {}", fit.energy);
+        // The Jacobian is the derivative at the optimum (forward difference of 0.005).
+        let t = 1.0;
+        let k = (t / DT) as usize;
+        let dk = -t * 5.0 * (-1.5 * t).exp();
+        assert!((fit.jac[1][0][k] / dk - 1.0).abs() < 0.01, "dy/dk {} vs {dk}", fit.jac[1][0][k]);
+    }
+
+    /// One parameter (the rate, amplitude known): coarse grid, LM and profile scan, from
+    /// a start far off; the profile brackets the optimum.
+    #[test]
+    fn lm_fits_a_decay_rate_alone() {
+        let (twin, p) = setup(500);
+        let o = Options {
+            base: with_values(&Effects::NONE, &[&spec("coulomb_nm", 60.0)], &[5.0]),
+            ..Options::default()
+        };
+        let sk = spec("viscous_nm_s_per_rad", 20.0);
+        let fit = refit(&twin, &p, &o, &[&sk], &[12.0]).expect("the twin runs");
+        assert!((fit.values[0] / 1.5 - 1.0).abs() < 1e-6, "k = {}", fit.values[0]);
+        let (lo, hi) = (fit.profile[0].0, fit.profile[fit.profile.len() - 1].0);
+        assert!(lo < 1.5 && 1.5 < hi, "profile {lo}..{hi}");
+        assert!(fit.profile.iter().all(|(_, e)| *e >= fit.energy));
+    }
+
+    /// An undetermined σ never makes a candidate significant; a finite small one does.
+    #[test]
+    fn significance_needs_a_finite_sigma() {
+        let (twin, p) = setup(100);
+        let o = Options::default();
+        let sa = spec("coulomb_nm", 60.0);
+        let fit = Fit {
+            values: vec![5.0],
+            sim: twin.run(&Effects::NONE).unwrap(),
+            jac: Vec::new(),
+            energy: 0.0,
+            profile: Vec::new(),
+        };
+        let fp = super::super::engine::FittedParam {
+            name: "coulomb_nm",
+            value: 0.0,
+            start: 0.0,
+            std: f64::NAN,
+            ci95: (0.0, 0.0),
+            unit: "-",
+        };
+        let mut cand = Candidate {
+            effect: "differential_friction",
+            params: vec![fp],
+            predicted_reduction: 0.0,
+            confirmed_reduction: None,
+            significant: false,
+            channels: Vec::new(),
+            regions: Vec::new(),
+        };
+        for (sd, significant) in [(f64::INFINITY, false), (f64::NAN, false), (0.1, true), (3.0, false)] {
+            confirm(&mut cand, &fit, &[sd], &[&sa], &p, &o);
+            assert_eq!(cand.significant, significant, "σ = {sd}");
+        }
+    }
+}

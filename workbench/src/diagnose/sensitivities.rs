@@ -1,0 +1,125 @@
+//! Stage 2: how every measured channel responds to every library parameter — one
+//! simulation per parameter (finite differences, in parallel) — and the weighted normal
+//! equations of the linear fits, whole and per channel.
+
+use model_core::Effects;
+
+use super::engine::{Options, Twin};
+use super::library::{current_value, library, with_values, ParamSpec};
+use super::preparation::{run_all, Prepared};
+
+/// The library's parameters and the linearised model around the current one.
+pub(super) struct Sensitivities {
+    /// Every library parameter, in library order.
+    pub specs: Vec<ParamSpec>,
+    /// Each parameter's value in the current model.
+    pub starts: Vec<f64>,
+    /// The finite-difference step (negative at the upper bound); the fits' unit.
+    pub steps: Vec<f64>,
+    /// `sens[parameter][channel][fit sample]`: the output change for one step.
+    pub sens: Vec<Vec<Vec<f64>>>,
+    /// `J'WJ` over all channels (`np x np`, row-major).
+    pub g: Vec<f64>,
+    /// `J'W r` over all channels.
+    pub b: Vec<f64>,
+    /// `J'WJ` per channel.
+    pub gc: Vec<Vec<f64>>,
+    /// `J'W r` per channel.
+    pub bc: Vec<Vec<f64>>,
+    /// Parameter indices of each effect, in library order.
+    pub groups: Vec<(&'static str, Vec<usize>)>,
+}
+
+impl Sensitivities {
+    /// Number of parameters.
+    pub fn np(&self) -> usize {
+        self.specs.len()
+    }
+}
+
+/// Simulate one step of every library parameter and set up the normal equations.
+pub(super) fn sensitivities(twin: &dyn Twin, p: &Prepared, o: &Options) -> Result<Sensitivities, String> {
+    let specs = library(&o.params);
+    let starts: Vec<f64> = specs.iter().map(|s| current_value(&o.base, s)).collect();
+    let steps: Vec<f64> = specs
+        .iter()
+        .zip(&starts)
+        .map(|(s, &v)| if v + s.delta <= s.upper { s.delta } else { -s.delta })
+        .collect();
+    let jobs: Vec<Effects> = specs
+        .iter()
+        .zip(starts.iter().zip(&steps))
+        .map(|(s, (v, h))| with_values(&o.base, &[s], &[v + h]))
+        .collect();
+    let mut sens: Vec<Vec<Vec<f64>>> = Vec::with_capacity(specs.len());
+    for r in run_all(twin, &jobs, o.threads) {
+        let y = r?;
+        check_shape(p, &y)?;
+        sens.push(
+            y.iter()
+                .zip(&p.base)
+                .map(|(a, b)| p.idx.iter().map(|&t| f64::from(a[t]) - b[t]).collect())
+                .collect(),
+        );
+    }
+    let (gc, bc) = channel_normal_equations(p, &sens);
+    let np = specs.len();
+    let mut g = vec![0.0; np * np];
+    let mut b = vec![0.0; np];
+    for (gcc, bcc) in gc.iter().zip(&bc) {
+        g.iter_mut().zip(gcc).for_each(|(a, x)| *a += x);
+        b.iter_mut().zip(bcc).for_each(|(a, x)| *a += x);
+    }
+    let groups = effect_groups(&specs);
+    Ok(Sensitivities { specs, starts, steps, sens, g, b, gc, bc, groups })
+}
+
+/// A simulation must have the measurement's channels and samples.
+pub(super) fn check_shape(p: &Prepared, y: &[Vec<f32>]) -> Result<(), String> {
+    let n = p.meas.first().map_or(0, Vec::len);
+    if y.len() != p.meas.len() || y.iter().any(|c| c.len() != n) {
+        return Err("the twin returned channels of the wrong shape".into());
+    }
+    Ok(())
+}
+
+/// Per channel `c`: `J_c' w_c J_c` (symmetric, full) and `J_c' w_c r_c`.
+fn channel_normal_equations(p: &Prepared, sens: &[Vec<Vec<f64>>]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let np = sens.len();
+    let nc = p.weights.len();
+    let mut gc = vec![vec![0.0; np * np]; nc];
+    let mut bc = vec![vec![0.0; np]; nc];
+    for (c, w) in p.weights.iter().enumerate() {
+        for (k, &t) in p.idx.iter().enumerate() {
+            let r = p.meas[c][t] - p.base[c][t];
+            for i in 0..np {
+                let si = sens[i][c][k];
+                if si == 0.0 {
+                    continue;
+                }
+                bc[c][i] += w * si * r;
+                for j in 0..=i {
+                    gc[c][i * np + j] += w * si * sens[j][c][k];
+                }
+            }
+        }
+        for i in 0..np {
+            for j in 0..i {
+                gc[c][j * np + i] = gc[c][i * np + j];
+            }
+        }
+    }
+    (gc, bc)
+}
+
+/// Parameter indices grouped by effect, in order of first appearance.
+fn effect_groups(specs: &[ParamSpec]) -> Vec<(&'static str, Vec<usize>)> {
+    let mut v: Vec<(&'static str, Vec<usize>)> = Vec::new();
+    for (i, s) in specs.iter().enumerate() {
+        match v.iter_mut().find(|(e, _)| *e == s.effect) {
+            Some((_, ix)) => ix.push(i),
+            None => v.push((s.effect, vec![i])),
+        }
+    }
+    v
+}

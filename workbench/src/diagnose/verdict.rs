@@ -1,0 +1,259 @@
+//! Stage 7: ranking and verdict. A significant candidate that removes most of the excess
+//! error *and leaves a noise-like residual* → that effect; a noise-like residual →
+//! nothing missing; a candidate that explains part → partial, with the unexplained rest
+//! located; otherwise "unexplained", and where.
+
+use model_core::{Channel, Effects};
+
+use super::engine::{Candidate, ConfoundedGroup, Location, Options, VerdictKind};
+use super::library::{with_values, ParamSpec};
+use super::preparation::{channel_energies, Prepared};
+use super::refit::Fit;
+use super::sensitivities::Sensitivities;
+
+/// Refitted and significant candidates first, by confirmed reduction; then the rest.
+pub(super) fn rank(cands: &[Candidate]) -> Vec<Candidate> {
+    let key = |c: &Candidate| (c.confirmed_reduction.is_some() && c.significant, c.reduction());
+    let mut ranking = cands.to_vec();
+    ranking.sort_by(|a, b| {
+        let (ka, kb) = (key(a), key(b));
+        kb.0.cmp(&ka.0).then(kb.1.total_cmp(&ka.1))
+    });
+    ranking
+}
+
+/// What the verdict weighs.
+pub(super) struct Evidence<'a> {
+    pub p: &'a Prepared,
+    pub s: &'a Sensitivities,
+    pub o: &'a Options,
+    pub channels: &'a [Channel],
+    /// Sample interval [s].
+    pub dt: f64,
+    /// Candidates in library order (as the refits index them).
+    pub cands: &'a [Candidate],
+    pub fits: &'a [(usize, Fit)],
+    pub ranking: &'a [Candidate],
+    pub confounded: &'a [ConfoundedGroup],
+}
+
+/// The verdict and what goes with it.
+pub(super) struct Verdict {
+    pub kind: VerdictKind,
+    pub sentence: String,
+    pub lead: Option<&'static str>,
+    pub unexplained: Option<Location>,
+    pub proposed: Effects,
+}
+
+impl Evidence<'_> {
+    /// The refit of `effect`, if it was refitted.
+    fn after(&self, effect: &str) -> Option<&Fit> {
+        self.fits.iter().find(|(ci, _)| self.cands[*ci].effect == effect).map(|(_, f)| f)
+    }
+
+    /// A candidate counts when it is significant and its refit removed at least
+    /// `min_reduction_of_noise` of the noise energy.
+    fn counts(&self, c: &Candidate) -> bool {
+        let floor = self.o.min_reduction_of_noise * self.p.e_noise;
+        c.significant && self.after(c.effect).is_some_and(|f| self.p.e0 - f.energy >= floor)
+    }
+
+    /// The base effects plus the lead's refitted values.
+    fn proposed(&self, lead: Option<&Candidate>) -> Effects {
+        let found = lead.and_then(|l| self.fits.iter().find(|(ci, _)| self.cands[*ci].effect == l.effect));
+        let Some((ci, f)) = found else { return self.o.base };
+        let sp: Vec<&ParamSpec> = self.s.groups[*ci].1.iter().map(|&i| &self.s.specs[i]).collect();
+        with_values(&self.o.base, &sp, &f.values)
+    }
+
+    /// On the channels a refit changes by more than `min_reduction_of_noise`: the share
+    /// of their excess error it removes, and what it leaves there over the noise. (A
+    /// torque-sensor offset acts on one channel of thirteen; its share of the whole run's
+    /// excess says little.)
+    fn on_affected(&self, f: &Fit) -> (f64, f64) {
+        let per_sample = self.p.idx.len() as f64;
+        let e0c = channel_energies(self.p, &self.p.base_sim);
+        let e1c = channel_energies(self.p, &f.sim);
+        let (mut removed, mut excess_a, mut left, mut k) = (0.0, 0.0, 0.0, 0.0);
+        for (a, b) in e0c.iter().zip(&e1c) {
+            if a - b > self.o.min_reduction_of_noise * per_sample {
+                removed += a - b;
+                excess_a += (a - per_sample).max(1e-3 * per_sample);
+                left += b;
+                k += 1.0;
+            }
+        }
+        if k == 0.0 {
+            (0.0, f64::INFINITY)
+        } else {
+            ((removed / excess_a).min(1.0), left / (k * per_sample))
+        }
+    }
+
+    /// The channel with the largest share of the excess error left by `sim`, and its
+    /// worst 2 s window.
+    fn locate_rest(&self, sim: &[Vec<f32>]) -> Location {
+        let p = self.p;
+        let m = p.idx.len() as f64;
+        let mut shares: Vec<(usize, f64)> =
+            channel_energies(p, sim).into_iter().map(|e| e - m).enumerate().collect();
+        let total: f64 = shares.iter().map(|(_, e)| e.max(0.0)).sum::<f64>().max(1e-300);
+        shares.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let (c, e) = shares.first().copied().unwrap_or((0, 0.0));
+        let (at, win) = worst_window(&p.meas[c], &sim[c], ((2.0 / self.dt).round() as usize).max(1));
+        Location {
+            channel: self.channels[c].name(),
+            share: e.max(0.0) / total,
+            window_s: (at as f64 * self.dt, (at + win) as f64 * self.dt),
+        }
+    }
+
+    /// Where the rest is, after the lead's refit (or the current model without one).
+    fn locate_after(&self, lead: Option<&Candidate>) -> Location {
+        match lead.and_then(|l| self.after(l.effect)) {
+            Some(f) => self.locate_rest(&f.sim),
+            None => self.locate_rest(&self.p.base_sim),
+        }
+    }
+}
+
+/// Start and length (samples) of the window of at most `win` samples with the largest
+/// squared residual `m - s`.
+fn worst_window(m: &[f64], s: &[f32], win: usize) -> (usize, usize) {
+    let r2: Vec<f64> = m.iter().zip(s).map(|(a, b)| (a - f64::from(*b)).powi(2)).collect();
+    let win = win.min(r2.len());
+    let mut acc: f64 = r2[..win].iter().sum();
+    let (mut best, mut at) = (acc, 0);
+    for i in win..r2.len() {
+        acc += r2[i] - r2[i - win];
+        if acc > best {
+            best = acc;
+            at = i + 1 - win;
+        }
+    }
+    (at, win)
+}
+
+/// Judge the evidence.
+pub(super) fn conclude(ev: &Evidence) -> Verdict {
+    let lead = ev.ranking.iter().find(|c| ev.counts(c));
+    let proposed = ev.proposed(lead);
+    let lead_fit = lead.and_then(|l| ev.after(l.effect));
+    let ratio_after = lead_fit.map_or(ev.p.excess_ratio, |f| f.energy / ev.p.e_noise);
+    let (red_a, after_a) = lead_fit.map_or((0.0, f64::INFINITY), |f| ev.on_affected(f));
+    let o = ev.o;
+    let explains = red_a >= o.explain_fraction && after_a <= o.noise_like_ratio;
+    let (kind, sentence, unexplained) = match lead {
+        Some(l) if explains && ratio_after <= o.noise_like_ratio => {
+            (VerdictKind::Missing, missing(l, red_a, ev.confounded.first()), None)
+        }
+        Some(l) if explains => {
+            let loc = ev.locate_after(lead);
+            let text = format!(
+                "missing effect: {} explains the error on the channels it acts on ({:.0} % there); more remains elsewhere ({:.1}x the noise): {}",
+                describe(l),
+                100.0 * red_a,
+                ratio_after,
+                place(&loc)
+            );
+            (VerdictKind::Partial, text, Some(loc))
+        }
+        _ if ev.p.excess_ratio <= o.noise_like_ratio => (
+            VerdictKind::NothingMissing,
+            format!(
+                "no effect is missing: the residual is noise-like (weighted energy {:.2}x what the estimated noise gives)",
+                ev.p.excess_ratio
+            ),
+            None,
+        ),
+        Some(l) if l.reduction() >= o.unexplained_fraction => {
+            let loc = ev.locate_after(lead);
+            (VerdictKind::Partial, partly_explained(l, ratio_after, &loc), Some(loc))
+        }
+        _ => {
+            let loc = ev.locate_rest(&ev.p.base_sim);
+            (VerdictKind::Unexplained, unexplained_sentence(ev.ranking.first(), &loc), Some(loc))
+        }
+    };
+    let lead = match kind {
+        VerdictKind::Missing | VerdictKind::Partial => lead.map(|l| l.effect),
+        _ => None,
+    };
+    Verdict { kind, sentence, lead, unexplained, proposed }
+}
+
+fn missing(l: &Candidate, red_a: f64, group: Option<&ConfoundedGroup>) -> String {
+    let group = group.map(|g| {
+        let sep = g
+            .separating_profile
+            .as_ref()
+            .map(|(pr, cos)| format!("; run {pr} to separate them (cosine {cos:.2})"));
+        format!(
+            " — confounded with {} on this run (cosine {:.2}){}",
+            g.effects[1..].join(", "),
+            g.cosine,
+            sep.unwrap_or_default()
+        )
+    });
+    format!(
+        "missing effect: {}, removes {:.0} % of the error above noise on the channels it acts on and leaves a noise-like residual{}",
+        describe(l),
+        100.0 * red_a,
+        group.unwrap_or_default()
+    )
+}
+
+fn partly_explained(l: &Candidate, ratio_after: f64, loc: &Location) -> String {
+    format!(
+        "partly explained: {} removes {:.0} % of the error above noise, but what remains is {:.1}x the noise and no library effect explains it: {}",
+        describe(l),
+        100.0 * l.reduction(),
+        ratio_after,
+        place(loc)
+    )
+}
+
+fn unexplained_sentence(best: Option<&Candidate>, loc: &Location) -> String {
+    format!(
+        "unexplained: no effect in the library explains the residual (the best, {}, removes {:.0} %): {}",
+        best.map_or("none", |c| c.effect),
+        100.0 * best.map_or(0.0, |c| c.reduction()),
+        place(loc)
+    )
+}
+
+/// `effect (param = value ± 95 % half-width unit, …)`.
+fn describe(l: &Candidate) -> String {
+    let params: Vec<String> = l
+        .params
+        .iter()
+        .map(|fp| format!("{} = {:.4} ± {:.4} {}", fp.name, fp.value, 1.96 * fp.std, fp.unit))
+        .collect();
+    format!("{} ({})", l.effect, params.join(", "))
+}
+
+fn place(loc: &Location) -> String {
+    format!(
+        "{} ({:.0} % of the excess), worst at {:.1}–{:.1} s",
+        loc.channel,
+        100.0 * loc.share,
+        loc.window_s.0,
+        loc.window_s.1
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn worst_window_finds_the_burst() {
+        let mut m = vec![0.0; 100];
+        m[40..45].iter_mut().for_each(|v| *v = 3.0);
+        let s = vec![0.0f32; 100];
+        assert_eq!(worst_window(&m, &s, 5), (40, 5));
+        // A window longer than the series is the whole series.
+        assert_eq!(worst_window(&m, &s, 500), (0, 100));
+    }
+}
