@@ -74,6 +74,10 @@ pub struct OptionsRec {
     pub allow_gaps: bool,
     /// The model data directory (`--data-dir`); `None`: the built-in data.
     pub data_dir: Option<String>,
+    /// [s] the speed-counting window the twin's speeds were averaged over
+    /// (`--speed-window-s`); `None` in records written before it was recorded.
+    #[serde(default)]
+    pub speed_window_s: Option<f64>,
 }
 
 /// One channel's error figures.

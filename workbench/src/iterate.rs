@@ -41,6 +41,7 @@ pub fn options_rec(
         mapping: mapping.map(|p| p.display().to_string()),
         allow_gaps,
         data_dir: None,
+        speed_window_s: Some(opts.model.sensors.speed_window_s),
     }
 }
 

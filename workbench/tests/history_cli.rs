@@ -43,6 +43,7 @@ fn every_compare_appends_one_record_and_history_lists_them_in_order() {
     for (i, l) in recs.iter().enumerate() {
         let j: Value = serde_json::from_str(l).unwrap_or_else(|e| panic!("line {}: {e}", i + 1));
         assert_eq!(j["simrod_history"], 1);
+        assert_eq!(j["options"]["speed_window_s"], 0.1, "the sensor model is part of the record");
         assert_eq!(j["measurement"]["sha256"], sha.as_str());
         assert!(j["timestamp"].as_str().unwrap().ends_with('Z'));
         let kl = j["channels"].as_array().unwrap().iter().find(|c| c["name"] == "C_Kistler_L").unwrap();
