@@ -1,31 +1,35 @@
-//! The simrod workbench: the host-side tool around the `model-core` twin.
+//! The simrod workbench CLI: the commands around the `model-core` twin, in the order of
+//! the user's loop. The work is done by library crates, one job each (re-exported here
+//! under their module names so `workbench::compare::...` keeps naming them):
 //!
-//! Modules are grouped by what they do for the user; `main.rs` only parses arguments
-//! and dispatches.
+//! - `simrod-io` (I/O: measurement files, data directories, effect/profile files,
+//!   atomic writes) and `simrod-numerics` (statistics, one RNG, linear algebra);
+//! - `simrod-vbench`, the virtual bench's measurement chain;
+//! - `simrod-twin`, the one path that runs the twin on a measurement;
+//! - `simrod-compare`, `simrod-diagnose`, `simrod-identify`;
+//! - `simrod-report`, tables, JSON, HTML and the one SVG plotter.
+//!
+//! The modules of this crate are the commands: they turn flags into the libraries'
+//! typed options and results into output.
 
-pub mod atomic;
+pub use simrod_compare as compare;
+pub use simrod_diagnose as diagnose;
+pub use simrod_identify as identify;
+pub use simrod_io::{
+    atomic, datadir, effects_file, error, measure, profile_file, sha256, sim_csv, toml_util,
+};
+pub use simrod_numerics::{linalg, stats};
+pub use simrod_report as report;
+pub use simrod_twin as twin;
+pub use simrod_vbench as vbench;
+
+pub mod cmd_bench;
 pub mod cmd_compare;
 pub mod cmd_diagnose;
 pub mod cmd_history;
 pub mod cmd_identify;
-pub mod compare;
-pub mod datadir;
 pub mod demo;
-pub mod diagnose;
-pub mod effects_file;
-pub mod error;
 pub mod history;
-pub mod identify;
 pub mod iterate;
-pub mod linalg;
-pub mod measure;
-pub mod profile_file;
-pub mod report;
-pub mod sha256;
-pub mod sim_csv;
 pub mod simulate;
-pub mod stats;
 pub mod summary;
-pub mod toml_util;
-pub mod twin;
-pub mod vbench;

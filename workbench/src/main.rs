@@ -24,7 +24,7 @@ enum Command {
     Simulate(SimulateArgs),
     /// Virtual bench: run the twin, add sensor noise and encoder counting, and write
     /// only what the real bench records (CSV or MAT).
-    Bench(workbench::vbench::BenchArgs),
+    Bench(workbench::cmd_bench::BenchArgs),
     /// Run the twin on a measured run's inputs and show where they disagree: per
     /// channel, per operating region, worst time spans, residual structure.
     Compare(workbench::cmd_compare::CompareArgs),
@@ -46,7 +46,7 @@ enum Command {
 fn dispatch(command: Command) -> Result<(), CmdError> {
     match command {
         Command::Simulate(args) => simulate::execute(&args),
-        Command::Bench(args) => workbench::vbench::execute(&args),
+        Command::Bench(args) => workbench::cmd_bench::execute(&args),
         Command::Compare(args) => workbench::cmd_compare::execute(&args),
         Command::Diagnose(args) => workbench::cmd_diagnose::execute(&args),
         Command::History(args) => workbench::cmd_history::execute(&args),

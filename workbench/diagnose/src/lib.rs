@@ -1,0 +1,20 @@
+//! `simrod diagnose`: which physical effect does the model lack? (See `engine`.)
+
+pub mod engine;
+pub mod library;
+pub mod linalg;
+/// The hidden-effect proof harness (tests and sweeps only, not the public library).
+#[cfg(feature = "proof")]
+pub mod proof;
+pub mod twin;
+
+// The stages of `engine::diagnose`, in order.
+mod confounding;
+mod preparation;
+mod refit;
+mod selection;
+mod sensitivities;
+mod uncertainty;
+mod verdict;
+
+pub use engine::{diagnose, Diagnosis, Options, ProfileProbe, Twin, VerdictKind};

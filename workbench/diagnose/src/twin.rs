@@ -1,0 +1,89 @@
+//! The twins a diagnosis runs: the twin on the measured run (through
+//! [`simrod_twin::MeasuredTwin`], the same path `simrod compare` takes) and the twin on
+//! built-in profiles (to find a separating experiment).
+
+use model_core::{Builtin, Channel, Effects, Inputs, Profile};
+
+use super::engine::{ProfileProbe, Twin};
+use simrod_twin::{MeasuredTwin, ModelOptions};
+
+/// The twin on a measured run, restricted to the channels the diagnosis fits.
+pub struct RecordedTwin {
+    /// The measured run on the comparison grid, with the model options.
+    pub twin: MeasuredTwin,
+    /// Channels to return.
+    pub channels: Vec<Channel>,
+}
+
+impl Twin for RecordedTwin {
+    fn channels(&self) -> &[Channel] {
+        &self.channels
+    }
+    fn samples(&self) -> usize {
+        self.twin.inputs.len()
+    }
+    fn dt_s(&self) -> f64 {
+        self.twin.dt_s()
+    }
+    fn run(&self, fx: &Effects) -> Result<Vec<Vec<f32>>, String> {
+        self.twin.simulate(*fx, &self.channels).map_err(|e| e.to_string())
+    }
+}
+
+/// Set points of a profile run, as a recorded run would carry them.
+pub fn profile_inputs(profile: &Profile, dt_us: u32, supply_v: f32) -> Vec<Inputs> {
+    let n = profile.duration_us().div_ceil(u64::from(dt_us));
+    (0..n).map(|k| Inputs { sp: profile.at(k * u64::from(dt_us)), supply_v }).collect()
+}
+
+/// The built-in profiles at a few scalings: the experiments a user could run next, at
+/// the bench's 1 kHz whatever the measured file's rate.
+pub struct BuiltinProbe {
+    /// The twin (data directory, parameters, sensors); effects are given per run.
+    pub model: ModelOptions,
+    /// Channels to return.
+    pub channels: Vec<Channel>,
+    /// (profile, throttle scale, load scale) candidates.
+    pub candidates: Vec<(Builtin, f32, f32)>,
+}
+
+/// Step of the probe runs [µs]: the bench's rate.
+const PROBE_DT_US: u32 = 1000;
+
+impl BuiltinProbe {
+    /// Forward and reverse, with and without loads, every built-in profile.
+    pub fn standard(model: ModelOptions, channels: Vec<Channel>) -> Self {
+        let mut candidates = Vec::new();
+        for b in Builtin::ALL {
+            for (ts, ls) in [(1.0, 1.0), (0.79, 0.0), (-1.0, 0.0), (0.79, -1.0)] {
+                candidates.push((b, ts, ls));
+            }
+        }
+        Self { model, channels, candidates }
+    }
+}
+
+impl ProfileProbe for BuiltinProbe {
+    fn count(&self) -> usize {
+        self.candidates.len()
+    }
+    fn name(&self, i: usize) -> String {
+        self.candidates.get(i).map_or_else(String::new, |(b, ts, ls)| {
+            format!("{} --throttle-scale {ts} --load-scale {ls}", b.name())
+        })
+    }
+    fn run(&self, i: usize, fx: &Effects) -> Option<Vec<Vec<f32>>> {
+        let (b, ts, ls) = *self.candidates.get(i)?;
+        let profile = Profile::new(self.model.profile_sets(b), ts, ls).ok()?;
+        let inputs = profile_inputs(&profile, PROBE_DT_US, self.model.supply_v);
+        let out = self.model.run(PROBE_DT_US, *fx, &inputs, &self.channels).ok()?;
+        // Every 10th step is plenty to compare shapes.
+        Some(out.into_iter().map(|v| v.into_iter().step_by(10).collect()).collect())
+    }
+}
+
+/// Channels the diagnosis fits: the bench's measured channels except the throttle
+/// voltage (it is an input, not a response).
+pub fn fitted_channels() -> Vec<Channel> {
+    model_core::MEASURED.iter().copied().filter(|c| *c != Channel::Throttle).collect()
+}

@@ -1,0 +1,13 @@
+//! Everything the workbench reads and writes: measurement files (CSV, MAT) with units,
+//! mappings and resampling, model data directories, effect and profile files, simulation
+//! CSVs, atomic writes, content hashes, and the errors that name file, line and column.
+
+pub mod atomic;
+pub mod datadir;
+pub mod effects_file;
+pub mod error;
+pub mod measure;
+pub mod profile_file;
+pub mod sha256;
+pub mod sim_csv;
+pub mod toml_util;

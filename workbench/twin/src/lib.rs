@@ -1,0 +1,113 @@
+//! The twin on a measurement: the one path that runs the model on a measured run.
+//!
+//! A measurement and the model options (data directory, effects, rate set, speed target,
+//! coupling, supply voltage and the bench's sensor model) go in; out come the set points
+//! on the comparison grid, the twin's channels *as the bench would record them* (speed
+//! channels through the encoder counting window, [`sensors`]) and the pairs of measured
+//! and simulated samples. `compare`, `diagnose`, the history's baseline, `demo` and the
+//! report all go through [`MeasuredTwin`]; nothing else steps the model on a file, so
+//! two commands given the same file and flags see the same residuals.
+
+pub mod args;
+pub mod measured;
+pub mod sensors;
+
+use std::sync::Arc;
+
+use model_core::{
+    Builtin, Channel, Config, CouplingStiffness, Effects, Inputs, Maps, Model, Params, ProfileSet, RateSet,
+    SpeedTarget,
+};
+
+pub use measured::{Aligned, InputSource, MeasuredTwin, Paired, TwinError, FALLBACK_DT_US};
+pub use sensors::SensorModel;
+use simrod_io::datadir::ModelData;
+
+/// What the twin is: model data, effects, parameter choices, supply and the bench's
+/// sensors. Built once from the command line ([`args::ModelArgs`]) and shared by every
+/// run of the twin a command makes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelOptions {
+    /// Model data (`--data-dir`): maps, parameters and profiles instead of the built-in
+    /// ones. `None`: the twin compiled into the binary.
+    pub data: Option<Arc<ModelData>>,
+    /// Effects switched on in the twin (the "current" effects of a diagnosis).
+    pub effects: Effects,
+    pub rates: RateSet,
+    pub speed_target: SpeedTarget,
+    pub coupling: CouplingStiffness,
+    /// [V] DPU set point (the busbar voltage is an output, not an input).
+    pub supply_v: f32,
+    /// How the bench records what the twin computes.
+    pub sensors: SensorModel,
+}
+
+impl Default for ModelOptions {
+    /// The thesis model as the SimRod bench records it (0.1 s speed window).
+    fn default() -> Self {
+        Self {
+            data: None,
+            effects: Effects::NONE,
+            rates: RateSet::Identified,
+            speed_target: SpeedTarget::Map,
+            coupling: CouplingStiffness::Identified,
+            supply_v: 24.0,
+            sensors: SensorModel::bench(),
+        }
+    }
+}
+
+impl ModelOptions {
+    /// The scalar parameters (from the data directory when there is one).
+    pub fn params(&self) -> Params {
+        match &self.data {
+            Some(d) => d.params(self.rates, self.coupling),
+            None => Params::thesis(self.rates, self.coupling),
+        }
+    }
+
+    /// The model's configuration at step `dt_us` with `effects`.
+    pub fn config(&self, dt_us: u32, effects: Effects) -> Config {
+        Config { dt_us, params: self.params(), speed_target: self.speed_target, effects }
+    }
+
+    /// The model's tables (borrowing the data directory when there is one).
+    pub fn maps(&self) -> Result<Maps<'_>, TwinError> {
+        match &self.data {
+            Some(d) => d.maps().map_err(|e| TwinError::Model(e.to_string())),
+            None => Ok(Maps::builtin()),
+        }
+    }
+
+    /// A model at rest, at step `dt_us` with `effects`.
+    pub fn model(&self, dt_us: u32, effects: Effects) -> Result<Model<'_>, TwinError> {
+        Model::with_maps(&self.config(dt_us, effects), self.maps()?)
+            .map_err(|e| TwinError::Model(format!("{e:?}")))
+    }
+
+    /// The sets of a built-in profile (the data directory's own copy when it has one).
+    pub fn profile_sets(&self, which: Builtin) -> &[ProfileSet] {
+        self.data.as_deref().and_then(|d| d.profile(which.name())).unwrap_or(which.sets())
+    }
+
+    /// Run the twin over `inputs` (one step each) and return `channels` as the bench
+    /// records them: the only loop that steps the model for an analysis.
+    pub fn run(
+        &self,
+        dt_us: u32,
+        effects: Effects,
+        inputs: &[Inputs],
+        channels: &[Channel],
+    ) -> Result<Vec<Vec<f32>>, TwinError> {
+        let mut model = self.model(dt_us, effects)?;
+        let mut out: Vec<Vec<f32>> = channels.iter().map(|_| Vec::with_capacity(inputs.len())).collect();
+        for inp in inputs {
+            let o = model.step(inp);
+            for (v, c) in out.iter_mut().zip(channels) {
+                v.push(o.get(*c));
+            }
+        }
+        self.sensors.apply(&mut out, channels, f64::from(dt_us) * 1e-6);
+        Ok(out)
+    }
+}

@@ -1,0 +1,459 @@
+//! A measured run as the twin sees it: the comparison grid, the set points on it, the
+//! measured channels on it, and the twin's channels paired with them.
+//!
+//! Measured values within half an f32 ulp of the twin's value count as equal to it
+//! (see `snap_to_f32`), so a bit-exact file compares to exactly zero.
+//!
+//! Timing convention (the one `model_core::Simulation` and `simrod bench` use): row `k`
+//! of a file is the state at the *end* of a model step, and the set points in that row
+//! are the ones held over that step. The twin starts at rest one step before the first
+//! row, so a run must start from rest. In profile mode the profile clock is the row
+//! time minus one step (a bench file's first row at `t = dt` is profile time 0).
+//!
+//! Model step: the measurement's mean sample interval when it is a whole number of
+//! microseconds inside `model_core::model::DT_US_RANGE` (whole: the difference to the
+//! nearest µs, accumulated over the run, is under 1 % of a step) and the grid is
+//! uniform (every interval within 1 % of the mean); otherwise the twin runs at 1 ms and
+//! the measured channels and set points are resampled onto a 1 ms grid by linear
+//! interpolation.
+
+use model_core::model::DT_US_RANGE;
+use model_core::{Builtin, Channel, Effects, Inputs, Profile, ProfileSet, SetPoints, MEASURED};
+
+use super::ModelOptions;
+use simrod_io::measure::{Measurement, GAP_CHANNEL, SETPOINT_LOAD_L, SETPOINT_LOAD_R, SETPOINT_THROTTLE};
+
+/// Step used when the measurement's own interval cannot be the model step.
+pub const FALLBACK_DT_US: u32 = 1000;
+
+/// Where the twin's set points come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum InputSource {
+    /// The file's set-point channels (`SuT Throttle`, `Dm Left`, `Dm Right`).
+    Recorded,
+    /// A built-in profile, scaled, for files without set-point channels.
+    Profile { which: Builtin, throttle_scale: f32, load_scale: f32 },
+}
+
+/// Why the twin cannot run on a measurement (all user-data problems).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TwinError {
+    #[error("the measurement has {0} samples; at least 2 are needed")]
+    TooShort(usize),
+    #[error("the time axis is not finite and strictly increasing")]
+    BadTime,
+    #[error("channel {channel} has {got} values for {want} time samples")]
+    Length { channel: String, got: usize, want: usize },
+    #[error(
+        "no set-point channel(s) {} in the file: compare with --profile NAME instead",
+        .0.join(", ")
+    )]
+    NoSetPoints(Vec<String>),
+    #[error("the file has none of the twin's measured channels")]
+    NoChannels,
+    #[error("the twin refused the configuration: {0}")]
+    Model(String),
+    #[error("profile: {0}")]
+    Profile(String),
+    #[error("--window-s must be finite and > 0")]
+    Window,
+}
+
+/// One channel, measured and simulated on the comparison grid.
+#[derive(Debug, Clone)]
+pub struct Paired {
+    /// Bench name.
+    pub name: String,
+    /// Unit (the twin's unit: the file's may be spelled differently).
+    pub unit: String,
+    /// Computed from other channels (P_DPU, ...) rather than read from the file.
+    pub derived: bool,
+    /// Measured values.
+    pub meas: Vec<f64>,
+    /// Twin values, as the bench records them.
+    pub sim: Vec<f64>,
+}
+
+/// The twin run paired with the measurement.
+#[derive(Debug, Clone)]
+pub struct Aligned {
+    /// [s] comparison grid (the file's time axis unless resampled).
+    pub time_s: Vec<f64>,
+    /// [µs] model step.
+    pub dt_us: u32,
+    /// Whether the measurement was resampled onto a 1 ms grid.
+    pub resampled: bool,
+    /// How the step was chosen, for the report.
+    pub step_note: String,
+    /// [%] set points applied at each step: throttle, load L, load R.
+    pub inputs: [Vec<f64>; 3],
+    /// Comparable channels, measured ones in `MEASURED` order, then the derived ones.
+    pub channels: Vec<Paired>,
+    /// [A] the twin's commanded load phase currents L, R (a function of the set points
+    /// only: the bench does not measure phase current), for the limit rule.
+    pub phase_current: [Vec<f64>; 2],
+    /// [rpm] the twin's SuT motor speed, for region rules when the file has none.
+    pub sim_speed: Vec<f64>,
+    /// Samples inside gaps the reader interpolated across (`--allow-gaps`): left out of
+    /// every figure.
+    pub gaps: Vec<bool>,
+}
+
+/// A measured run prepared for the twin: grid, set points and measured channels, built
+/// once; [`MeasuredTwin::simulate`] then runs the twin on it with any effects.
+#[derive(Debug, Clone)]
+pub struct MeasuredTwin {
+    /// The twin (its `effects` are the default of [`MeasuredTwin::align`]).
+    pub model: ModelOptions,
+    /// [s] comparison grid (the file's time axis unless resampled).
+    pub time_s: Vec<f64>,
+    /// [µs] model step.
+    pub dt_us: u32,
+    /// Whether the measurement was resampled onto a 1 ms grid.
+    pub resampled: bool,
+    /// How the step was chosen, for the report.
+    pub step_note: String,
+    /// [%] set points on the grid: throttle, load L, load R.
+    pub set_points: [Vec<f64>; 3],
+    /// The model's inputs, one per sample.
+    pub inputs: Vec<Inputs>,
+    /// The file's measured channels on the grid, in `MEASURED` order.
+    pub measured: Vec<(Channel, Vec<f64>)>,
+    /// Samples inside interpolated gaps.
+    pub gaps: Vec<bool>,
+}
+
+impl MeasuredTwin {
+    /// Put `meas` on the comparison grid and take its set points from `source`.
+    pub fn new(meas: &Measurement, model: &ModelOptions, source: &InputSource) -> Result<Self, TwinError> {
+        let grid = choose_grid(&meas.time_s)?;
+        let time_s = grid.resample_to.clone().unwrap_or_else(|| meas.time_s.clone());
+        let set_points = match source {
+            InputSource::Recorded => recorded_set_points(meas, &grid)?,
+            InputSource::Profile { which, throttle_scale, load_scale } => profile_set_points(
+                model.profile_sets(*which),
+                *throttle_scale,
+                *load_scale,
+                &time_s,
+                grid.dt_us,
+            )?,
+        };
+        let inputs = (0..time_s.len())
+            .map(|k| {
+                let at = |v: &Vec<f64>| v.get(k).copied().unwrap_or(0.0) as f32;
+                Inputs {
+                    sp: SetPoints {
+                        throttle_pct: at(&set_points[0]),
+                        load_pct: [at(&set_points[1]), at(&set_points[2])],
+                    },
+                    supply_v: model.supply_v,
+                }
+            })
+            .collect();
+        let mut measured = Vec::new();
+        for &ch in MEASURED {
+            if let Some(v) = on_grid(meas, ch.name(), &grid)? {
+                measured.push((ch, v));
+            }
+        }
+        // Any trace of a gap (also after interpolation onto our grid) marks the sample.
+        let gaps = match on_grid(meas, GAP_CHANNEL, &grid)? {
+            Some(v) => v.iter().map(|g| *g != 0.0).collect(),
+            None => vec![false; time_s.len()],
+        };
+        Ok(Self {
+            model: model.clone(),
+            time_s,
+            dt_us: grid.dt_us,
+            resampled: grid.resample_to.is_some(),
+            step_note: grid.note,
+            set_points,
+            inputs,
+            measured,
+            gaps,
+        })
+    }
+
+    /// [s] model step.
+    pub fn dt_s(&self) -> f64 {
+        f64::from(self.dt_us) * 1e-6
+    }
+
+    /// The twin's `channels` with `effects`, as the bench records them, one value per
+    /// sample of the grid.
+    pub fn simulate(&self, effects: Effects, channels: &[Channel]) -> Result<Vec<Vec<f32>>, TwinError> {
+        self.model.run(self.dt_us, effects, &self.inputs, channels)
+    }
+
+    /// The measured channel `ch` on the grid, if the file has it.
+    pub fn measured(&self, ch: Channel) -> Option<&[f64]> {
+        self.measured.iter().find(|(c, _)| *c == ch).map(|(_, v)| v.as_slice())
+    }
+
+    /// The twin with `effects` paired with every measured channel, plus the derived
+    /// powers.
+    pub fn align(&self, effects: Effects) -> Result<Aligned, TwinError> {
+        let mut wanted: Vec<Channel> = self.measured.iter().map(|(c, _)| *c).collect();
+        let extra = [Channel::ILmlPhase, Channel::ILmrPhase, Channel::SuTMotorEnc];
+        wanted.extend(extra);
+        let mut sim = self.simulate(effects, &wanted)?;
+        let widen = |v: Vec<f32>| v.into_iter().map(f64::from).collect::<Vec<f64>>();
+        let tail = sim.split_off(self.measured.len());
+        let [phase_l, phase_r, speed]: [Vec<f32>; 3] = tail.try_into().map_err(|_| TwinError::NoChannels)?;
+        let mut channels: Vec<Paired> = self
+            .measured
+            .iter()
+            .zip(sim)
+            .map(|((ch, m), s)| {
+                let s = widen(s);
+                let mut m = m.clone();
+                snap_to_f32(&mut m, &s);
+                Paired {
+                    name: ch.name().to_string(),
+                    unit: ch.unit().to_string(),
+                    derived: false,
+                    meas: m,
+                    sim: s,
+                }
+            })
+            .collect();
+        let derived = derive_powers(&channels);
+        channels.extend(derived);
+        Ok(Aligned {
+            time_s: self.time_s.clone(),
+            dt_us: self.dt_us,
+            resampled: self.resampled,
+            step_note: self.step_note.clone(),
+            inputs: self.set_points.clone(),
+            channels,
+            phase_current: [widen(phase_l), widen(phase_r)],
+            sim_speed: widen(speed),
+            gaps: self.gaps.clone(),
+        })
+    }
+}
+
+/// Run the twin on `meas`'s inputs and pair the outputs with the measured channels.
+pub fn align(meas: &Measurement, model: &ModelOptions, source: &InputSource) -> Result<Aligned, TwinError> {
+    MeasuredTwin::new(meas, model, source)?.align(model.effects)
+}
+
+/// How the comparison grid relates to the file's.
+struct Grid {
+    dt_us: u32,
+    /// `None`: use the file's samples as they are.
+    resample_to: Option<Vec<f64>>,
+    note: String,
+}
+
+/// The file's set-point channels on the grid; all three are needed.
+fn recorded_set_points(meas: &Measurement, grid: &Grid) -> Result<[Vec<f64>; 3], TwinError> {
+    let mut got = Vec::with_capacity(3);
+    let mut missing = Vec::new();
+    for name in [SETPOINT_THROTTLE, SETPOINT_LOAD_L, SETPOINT_LOAD_R] {
+        match on_grid(meas, name, grid)? {
+            Some(v) => got.push(v),
+            None => missing.push(name.to_string()),
+        }
+    }
+    if !missing.is_empty() {
+        return Err(TwinError::NoSetPoints(missing));
+    }
+    got.try_into().map_err(|_| TwinError::NoSetPoints(vec![SETPOINT_THROTTLE.into()]))
+}
+
+fn choose_grid(time: &[f64]) -> Result<Grid, TwinError> {
+    let n = time.len();
+    let (Some(&t0), Some(&t1)) = (time.first(), time.last()) else {
+        return Err(TwinError::TooShort(n));
+    };
+    if n < 2 {
+        return Err(TwinError::TooShort(n));
+    }
+    if !time.iter().all(|t| t.is_finite()) || t1 <= t0 {
+        return Err(TwinError::BadTime);
+    }
+    let mean = (t1 - t0) / (n - 1) as f64;
+    let uniform = time.windows(2).all(|w| ((w[1] - w[0]) - mean).abs() <= 0.01 * mean);
+    if !time.windows(2).all(|w| w[1] > w[0]) {
+        return Err(TwinError::BadTime);
+    }
+    let us = mean * 1e6;
+    let rounded = us.round();
+    // Whole: the difference, accumulated over the run, stays within 1 % of a step.
+    let whole = (us - rounded).abs() * (n - 1) as f64 <= 0.01 * rounded;
+    let in_range = rounded >= f64::from(DT_US_RANGE.0) && rounded <= f64::from(DT_US_RANGE.1);
+    if uniform && whole && in_range {
+        return Ok(Grid {
+            dt_us: rounded as u32,
+            resample_to: None,
+            note: format!("model step = sample interval = {rounded} µs"),
+        });
+    }
+    let dt = f64::from(FALLBACK_DT_US) * 1e-6;
+    let steps = ((t1 - t0) / dt + 1e-9).floor() as usize;
+    let grid: Vec<f64> = (0..=steps).map(|j| t0 + j as f64 * dt).collect();
+    let why = if !uniform {
+        "the time axis is not uniform".to_string()
+    } else if !whole {
+        format!("the sample interval {us:.4} µs is not a whole number of µs")
+    } else {
+        format!("the sample interval {rounded} µs is outside {}..{} µs", DT_US_RANGE.0, DT_US_RANGE.1)
+    };
+    Ok(Grid {
+        dt_us: FALLBACK_DT_US,
+        resample_to: Some(grid),
+        note: format!("{why}: measurement resampled (linear) to 1 ms, model step 1 ms"),
+    })
+}
+
+/// Linear interpolation of `(t, y)` at increasing `grid` times (edges hold).
+fn resample(t: &[f64], y: &[f64], grid: &[f64]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(grid.len());
+    let mut j = 0usize;
+    for &g in grid {
+        while j + 2 < t.len() && t[j + 1] <= g {
+            j += 1;
+        }
+        let (Some(&ta), Some(&tb), Some(&ya), Some(&yb)) = (t.get(j), t.get(j + 1), y.get(j), y.get(j + 1))
+        else {
+            out.push(y.first().copied().unwrap_or(f64::NAN));
+            continue;
+        };
+        let f = ((g - ta) / (tb - ta)).clamp(0.0, 1.0);
+        out.push(ya + f * (yb - ya));
+    }
+    out
+}
+
+/// A signal of the file on the comparison grid; a length mismatch is a user-data error.
+fn on_grid(meas: &Measurement, name: &str, grid: &Grid) -> Result<Option<Vec<f64>>, TwinError> {
+    let Some(sig) = meas.signal(name) else {
+        return Ok(None);
+    };
+    if sig.values.len() != meas.time_s.len() {
+        return Err(TwinError::Length {
+            channel: name.to_string(),
+            got: sig.values.len(),
+            want: meas.time_s.len(),
+        });
+    }
+    Ok(Some(match &grid.resample_to {
+        None => sig.values.clone(),
+        Some(g) => resample(&meas.time_s, &sig.values, g),
+    }))
+}
+
+/// Measured values that round to the twin's f32 value *are* that value: the twin
+/// computes in f32, and a file of f32 decimals reads back as the f64 nearest the
+/// decimal, up to half an f32 ulp (~6e-8 relative) away from the f32 itself. Without
+/// this a bit-exact run would show a spurious error of that size; real measurement
+/// noise is orders of magnitude above it.
+fn snap_to_f32(meas: &mut [f64], sim: &[f64]) {
+    for (m, s) in meas.iter_mut().zip(sim) {
+        if m.is_finite() && (*m as f32) == (*s as f32) {
+            *m = *s;
+        }
+    }
+}
+
+/// Set points of a built-in profile at each row: profile clock = row time − one step.
+fn profile_set_points(
+    sets: &[ProfileSet],
+    throttle_scale: f32,
+    load_scale: f32,
+    time_s: &[f64],
+    dt_us: u32,
+) -> Result<[Vec<f64>; 3], TwinError> {
+    let profile =
+        Profile::new(sets, throttle_scale, load_scale).map_err(|e| TwinError::Profile(format!("{e:?}")))?;
+    let mut out = [
+        Vec::with_capacity(time_s.len()),
+        Vec::with_capacity(time_s.len()),
+        Vec::with_capacity(time_s.len()),
+    ];
+    for &t in time_s {
+        let t_us = (t * 1e6).round().max(0.0) as u64;
+        let sp = profile.at(t_us.saturating_sub(u64::from(dt_us)));
+        out[0].push(f64::from(sp.throttle_pct));
+        out[1].push(f64::from(sp.load_pct[0]));
+        out[2].push(f64::from(sp.load_pct[1]));
+    }
+    Ok(out)
+}
+
+/// Derived power channels, computed from measured channels exactly as the twin's
+/// outputs define them (thesis 5.13), on both sides; only those whose inputs exist.
+pub fn derive_powers(channels: &[Paired]) -> Vec<Paired> {
+    let get = |c: Channel| channels.iter().find(|p| p.name == c.name());
+    let mut out = Vec::new();
+    let mut push = |c: Channel, f: &dyn Fn(bool, usize) -> f64, n: usize| {
+        out.push(Paired {
+            name: c.name().to_string(),
+            unit: c.unit().to_string(),
+            derived: true,
+            meas: (0..n).map(|k| f(false, k)).collect(),
+            sim: (0..n).map(|k| f(true, k)).collect(),
+        });
+    };
+    let at = |p: &Paired, sim: bool, k: usize| {
+        let v = if sim { &p.sim } else { &p.meas };
+        v.get(k).copied().unwrap_or(f64::NAN)
+    };
+    let n = channels.first().map_or(0, |p| p.meas.len());
+    if let (Some(v), Some(i)) = (get(Channel::VDcBusbars), get(Channel::IDpu27)) {
+        push(Channel::PDpu, &|s, k| at(v, s, k) * at(i, s, k), n);
+    }
+    if let (Some(v), Some(i)) = (get(Channel::VDc), get(Channel::IDc)) {
+        push(Channel::PSutInv, &|s, k| at(v, s, k) * at(i, s, k), n);
+    }
+    if let (Some(v), Some(a), Some(b)) =
+        (get(Channel::VDcBusbars), get(Channel::IXlml22), get(Channel::IXlmlBu1))
+    {
+        push(Channel::PLml, &|s, k| (at(a, s, k) + at(b, s, k)) * at(v, s, k), n);
+    }
+    if let (Some(v), Some(i)) = (get(Channel::VDcBusbars), get(Channel::IXlmr23)) {
+        push(Channel::PLmr, &|s, k| 2.0 * at(i, s, k) * at(v, s, k), n);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn whole_microsecond_grid_is_kept() {
+        let t: Vec<f64> = (1..=100).map(|k| k as f64 * 1e-3).collect();
+        let g = choose_grid(&t).unwrap();
+        assert_eq!(g.dt_us, 1000);
+        assert!(g.resample_to.is_none());
+        let t: Vec<f64> = (1..=100).map(|k| k as f64 * 1e-4).collect();
+        assert_eq!(choose_grid(&t).unwrap().dt_us, 100);
+    }
+
+    #[test]
+    fn odd_interval_is_resampled_to_1ms() {
+        let t: Vec<f64> = (0..300).map(|k| k as f64 * 1.5005e-3 + 0.0000007).collect();
+        let g = choose_grid(&t).unwrap();
+        assert_eq!(g.dt_us, 1000);
+        let grid = g.resample_to.unwrap();
+        assert_eq!(grid.len(), (299.0 * 1.5005) as usize + 1);
+        let y: Vec<f64> = t.iter().map(|x| 3.0 * x + 1.0).collect();
+        let r = resample(&t, &y, &grid);
+        for (g, v) in grid.iter().zip(&r) {
+            assert!((v - (3.0 * g + 1.0)).abs() < 1e-12);
+        }
+        // 20 ms is beyond the model's range.
+        let t: Vec<f64> = (0..10).map(|k| k as f64 * 0.02).collect();
+        assert!(choose_grid(&t).unwrap().resample_to.is_some());
+    }
+
+    #[test]
+    fn bad_time_axes_are_errors_not_panics() {
+        assert!(matches!(choose_grid(&[]), Err(TwinError::TooShort(0))));
+        assert!(matches!(choose_grid(&[1.0]), Err(TwinError::TooShort(1))));
+        assert!(matches!(choose_grid(&[0.0, f64::NAN, 2.0]), Err(TwinError::BadTime)));
+        assert!(matches!(choose_grid(&[0.0, 0.002, 0.001, 0.003]), Err(TwinError::BadTime)));
+    }
+}
