@@ -33,13 +33,11 @@ pub fn library_cases() -> Vec<Case> {
         .collect()
 }
 
-/// A uniform draw in `[lo, hi]` from a seed (SplitMix64).
+/// A uniform draw in `[lo, hi]`: stream `k` of `seed` of the one generator
+/// ([`simrod_numerics::stats::Rng`]).
 pub fn draw(seed: u64, k: u64, lo: f32, hi: f32) -> f32 {
-    let mut z = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(k.wrapping_mul(0xBF58_476D_1CE4_E5B9));
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^= z >> 31;
-    lo + (hi - lo) * ((z >> 40) as f32 / (1u64 << 24) as f32)
+    let u = simrod_numerics::stats::Rng::new(seed, k).uniform();
+    lo + (hi - lo) * u as f32
 }
 
 /// A virtual-bench run: the noisy measured channels and the twin on its recorded inputs.
