@@ -1,6 +1,6 @@
 //! What every identification writes besides its data files: `report.md` (values, fit
 //! statistics, per-plateau tables, what was rejected and why) and SVG charts, drawn by
-//! hand like `simrod_report::svg` so no plotting library is needed.
+//! `simrod_report::svg` (plotters' SVG backend, no font library).
 
 use std::fmt::Write as _;
 use std::io;

@@ -1,5 +1,5 @@
 //! Presenting a comparison: a terminal table, JSON for scripts, and a self-contained
-//! HTML report with hand-written SVG charts.
+//! HTML report with inline SVG charts (one plotter, `svg`, on plotters' SVG backend).
 
 pub mod html;
 pub mod json;

@@ -1,12 +1,25 @@
-//! The workbench's one plotter: hand-written SVG charts for the compare report (time
-//! traces, error budget, history) and the identification reports (x-y points with
-//! error bars and fitted curves). No plotting or font library, `<text>` for labels, so
-//! the HTML report stays one self-contained file that any browser renders.
+//! The workbench's one plotter: SVG charts for the compare report (time traces, error
+//! budget, history) and the identification reports (x-y points with error bars and fitted
+//! curves).
+//!
+//! Drawing is done by the `plotters` crate's SVG backend (issue 10: one plotting module,
+//! not a hand-written one). It is built with `default-features = false` and only
+//! `svg_backend` + `line_series`: no `ttf`, so no system font library (font-kit,
+//! freetype, fontconfig) is linked; labels are plain SVG `<text>` that the browser lays
+//! out. The output is inline SVG without scripts or fonts, so the HTML report stays one
+//! self-contained file. What plotters does not do is done here: the min/max envelope
+//! decimation of long runs, the tick-label format, the legends and the `role`/`aria-label`
+//! of each chart.
 //!
 //! Long runs are drawn as a per-pixel-column min/max envelope: 70,000 samples become
 //! ~2 points per pixel and a one-sample spike still shows.
 
-use std::fmt::Write;
+use std::error::Error;
+
+use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint};
+use plotters::coord::types::RangedCoordf64;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 /// Chart size in px and the plot area's margins.
 const W: f64 = 900.0;
@@ -14,6 +27,10 @@ const ML: f64 = 70.0;
 const MR: f64 = 15.0;
 const MT: f64 = 24.0;
 const MB: f64 = 34.0;
+
+/// A drawing step's result; a failed chart still ends as well-formed SVG (the backend
+/// closes its tags when dropped).
+type Drawn = Result<(), Box<dyn Error>>;
 
 /// One line of a line chart.
 pub struct Series<'a> {
@@ -56,25 +73,6 @@ fn tick_label(v: f64) -> String {
     }
 }
 
-/// About `n` round tick values covering `[lo, hi]`.
-fn ticks(lo: f64, hi: f64, n: usize) -> Vec<f64> {
-    let span = hi - lo;
-    if !(span.is_finite() && span > 0.0) {
-        return vec![lo];
-    }
-    let raw = span / n.max(1) as f64;
-    let mag = 10f64.powf(raw.log10().floor());
-    let step = [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * mag).find(|s| *s >= raw).unwrap_or(10.0 * mag);
-    let first = (lo / step).ceil() * step;
-    let mut v = Vec::new();
-    let mut t = first;
-    while t <= hi + 1e-9 * step && v.len() < 50 {
-        v.push(if t.abs() < 1e-12 * step { 0.0 } else { t });
-        t += step;
-    }
-    v
-}
-
 /// Finite min and max of `vals`, padded by 5 %; a flat or empty range is widened.
 fn padded_range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = vals
@@ -96,16 +94,96 @@ fn y_range(series: &[Series<'_>]) -> (f64, f64) {
     padded_range(series.iter().flat_map(|s| s.values.iter().copied()))
 }
 
-/// Min/max envelope of `y` over `cols` pixel columns, as a polyline point list.
-fn envelope(
-    t: &[f64],
-    y: &[f64],
-    x_of: &dyn Fn(f64) -> f64,
-    y_of: &dyn Fn(f64) -> f64,
-    cols: usize,
+/// `#rgb` or `#rrggbb` as a plotters colour; anything else is black.
+fn rgb(c: &str) -> RGBColor {
+    let h = c.trim().trim_start_matches('#');
+    let hex = |s: &str| u8::from_str_radix(s, 16).ok();
+    if !h.is_ascii() {
+        return BLACK;
+    }
+    let parts = match h.len() {
+        6 => (hex(&h[0..2]), hex(&h[2..4]), hex(&h[4..6])),
+        3 => (hex(&h[0..1]).map(|v| v * 17), hex(&h[1..2]).map(|v| v * 17), hex(&h[2..3]).map(|v| v * 17)),
+        _ => (None, None, None),
+    };
+    match parts {
+        (Some(r), Some(g), Some(b)) => RGBColor(r, g, b),
+        _ => BLACK,
+    }
+}
+
+/// Grey `#vvvvvv`.
+fn grey(v: u8) -> RGBColor {
+    RGBColor(v, v, v)
+}
+
+/// A sans-serif text style of `px` CSS pixels (the SVG backend writes size / 1.24).
+fn font(px: f64) -> TextStyle<'static> {
+    TextStyle::from(("sans-serif", px * 1.24).into_font())
+}
+
+/// A bold title.
+fn title_font(px: f64) -> TextStyle<'static> {
+    TextStyle::from(("sans-serif", px * 1.24, FontStyle::Bold).into_font())
+}
+
+/// Anchored text style.
+fn anchored(s: TextStyle<'static>, h: HPos, v: VPos) -> TextStyle<'static> {
+    s.pos(Pos::new(h, v))
+}
+
+/// Draw into an SVG of `w` x `h` px with plotters and return it compact (no newlines
+/// between tags) and labelled for screen readers.
+fn render(
+    title: &str,
+    w: f64,
+    h: f64,
+    draw: impl FnOnce(&DrawingArea<SVGBackend<'_>, plotters::coord::Shift>) -> Drawn,
 ) -> String {
+    let mut buf = String::new();
+    {
+        let root = SVGBackend::with_string(&mut buf, (w.round().max(1.0) as u32, h.round().max(1.0) as u32))
+            .into_drawing_area();
+        // A chart that could not be drawn completely is still returned, well formed.
+        let _ = draw(&root);
+        let _ = root.present();
+    }
+    let s = buf.replace(">\n", ">").replace("\n</", "</");
+    s.trim_end().replacen("<svg ", &format!(r#"<svg role="img" aria-label="{}" "#, esc(title)), 1)
+}
+
+/// An axis with given tick values (plotters' `with_key_points` gives up the label
+/// formatter, which the mesh needs).
+struct Keyed<R> {
+    inner: R,
+    keys: Vec<f64>,
+}
+
+impl<R: Ranged<ValueType = f64>> Ranged for Keyed<R> {
+    type FormatOption = DefaultFormatting;
+    type ValueType = f64;
+
+    fn map(&self, v: &f64, limit: (i32, i32)) -> i32 {
+        self.inner.map(v, limit)
+    }
+
+    fn key_points<H: KeyPointHint>(&self, hint: H) -> Vec<f64> {
+        if hint.weight().allow_light_points() {
+            Vec::new()
+        } else {
+            self.keys.clone()
+        }
+    }
+
+    fn range(&self) -> std::ops::Range<f64> {
+        self.inner.range()
+    }
+}
+
+/// Min/max envelope of `y` over `cols` pixel columns, as (t, y) points in time order.
+fn envelope(t: &[f64], y: &[f64], cols: usize) -> Vec<(f64, f64)> {
     let n = t.len().min(y.len());
-    let mut pts = String::new();
+    let mut pts = Vec::new();
     if n == 0 {
         return pts;
     }
@@ -115,7 +193,7 @@ fn envelope(
         let end = (k + per).min(n);
         let (mut lo, mut hi, mut ilo, mut ihi) = (f64::INFINITY, f64::NEG_INFINITY, k, k);
         for (i, &v) in y.iter().enumerate().take(end).skip(k) {
-            if v.is_finite() {
+            if v.is_finite() && t[i].is_finite() {
                 if v < lo {
                     lo = v;
                     ilo = i;
@@ -129,11 +207,9 @@ fn envelope(
         if lo.is_finite() {
             // Keep the time order of the two extremes.
             let (a, b) = if ilo <= ihi { (ilo, ihi) } else { (ihi, ilo) };
-            for i in [a, b] {
-                let _ = write!(pts, "{:.1},{:.1} ", x_of(t[i]), y_of(y[i]));
-                if a == b {
-                    break;
-                }
+            pts.push((t[a], y[a]));
+            if a != b {
+                pts.push((t[b], y[b]));
             }
         }
         k = end;
@@ -150,99 +226,59 @@ pub fn line_chart(
     shade: &[(f64, f64)],
     height: f64,
 ) -> String {
-    let h = height;
     let (t0, t1) = match (t.first(), t.last()) {
-        (Some(a), Some(b)) if b > a => (*a, *b),
-        (Some(a), _) => (*a, a + 1.0),
+        (Some(a), Some(b)) if a.is_finite() && b > a && b.is_finite() => (*a, *b),
+        (Some(a), _) if a.is_finite() => (*a, a + 1.0),
         _ => (0.0, 1.0),
     };
     let (lo, hi) = y_range(series);
-    let pw = W - ML - MR;
-    let ph = h - MT - MB;
-    let x_of = |x: f64| ML + (x - t0) / (t1 - t0) * pw;
-    let y_of = |y: f64| MT + (hi - y) / (hi - lo) * ph;
-    let mut s = String::new();
-    let _ = write!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {W} {h}" width="{W}" height="{h}" role="img" aria-label="{}">"#,
-        esc(title)
-    );
-    let _ = write!(s, r##"<rect x="{ML}" y="{MT}" width="{pw}" height="{ph}" fill="#fff" stroke="#999"/>"##);
-    for (a, b) in shade {
-        let (xa, xb) = (x_of(a.max(t0)), x_of(b.min(t1)));
-        if xb > xa {
-            let _ = write!(
-                s,
-                r##"<rect x="{xa:.1}" y="{MT}" width="{:.1}" height="{ph}" fill="#f6c343" fill-opacity="0.35"/>"##,
-                xb - xa
-            );
+    let cols = (W - ML - MR) as usize;
+    render(title, W, height, |root| {
+        let mut chart = ChartBuilder::on(root)
+            .margin_top(MT as i32)
+            .margin_right(MR as i32)
+            .x_label_area_size(MB as i32)
+            .y_label_area_size(ML as i32)
+            .build_cartesian_2d(t0..t1, lo..hi)?;
+        chart.draw_series(shade.iter().filter(|(a, b)| b.min(t1) > a.max(t0)).map(|(a, b)| {
+            Rectangle::new([(a.max(t0), hi), (b.min(t1), lo)], RGBColor(0xf6, 0xc3, 0x43).mix(0.35).filled())
+        }))?;
+        chart
+            .configure_mesh()
+            .x_labels(10)
+            .y_labels(5)
+            .x_label_formatter(&|v| tick_label(*v))
+            .y_label_formatter(&|v| tick_label(*v))
+            .bold_line_style(grey(0xe3))
+            .light_line_style(TRANSPARENT)
+            .axis_style(grey(0x99))
+            .label_style(font(11.0))
+            .axis_desc_style(font(11.0))
+            .x_desc("time [s]")
+            .y_desc(format!("[{unit}]"))
+            .draw()?;
+        if lo < 0.0 && hi > 0.0 {
+            chart.draw_series(std::iter::once(PathElement::new(vec![(t0, 0.0), (t1, 0.0)], grey(0x88))))?;
         }
-    }
-    for v in ticks(lo, hi, 5) {
-        let y = y_of(v);
-        let _ = write!(
-            s,
-            r##"<line x1="{ML}" x2="{:.1}" y1="{y:.1}" y2="{y:.1}" stroke="#e3e3e3"/><text x="{:.1}" y="{:.1}" text-anchor="end" font-size="11">{}</text>"##,
-            ML + pw,
-            ML - 4.0,
-            y + 4.0,
-            tick_label(v)
-        );
-    }
-    for v in ticks(t0, t1, 10) {
-        let x = x_of(v);
-        let _ = write!(
-            s,
-            r##"<line x1="{x:.1}" x2="{x:.1}" y1="{MT}" y2="{:.1}" stroke="#eee"/><text x="{x:.1}" y="{:.1}" text-anchor="middle" font-size="11">{}</text>"##,
-            MT + ph,
-            MT + ph + 14.0,
-            tick_label(v)
-        );
-    }
-    if lo < 0.0 && hi > 0.0 {
-        let y = y_of(0.0);
-        let _ = write!(
-            s,
-            r##"<line x1="{ML}" x2="{:.1}" y1="{y:.1}" y2="{y:.1}" stroke="#888" stroke-dasharray="3,3"/>"##,
-            ML + pw
-        );
-    }
-    let cols = pw as usize;
-    for se in series {
-        let pts = envelope(t, se.values, &x_of, &y_of, cols);
-        let _ = write!(
-            s,
-            r#"<polyline fill="none" stroke="{}" stroke-width="1.2" points="{}"/>"#,
-            esc(se.color),
-            pts.trim_end()
-        );
-    }
-    let _ = write!(
-        s,
-        r#"<text x="{ML}" y="15" font-size="13" font-weight="bold">{}</text><text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="11">time [s]</text><text x="14" y="{:.1}" font-size="11" transform="rotate(-90 14 {:.1})" text-anchor="middle">[{}]</text>"#,
-        esc(title),
-        ML + pw / 2.0,
-        h - 4.0,
-        MT + ph / 2.0,
-        MT + ph / 2.0,
-        esc(unit)
-    );
-    let mut lx = W - MR - 8.0;
-    for se in series.iter().rev() {
-        let w = 12.0 + 7.0 * se.label.chars().count() as f64;
-        lx -= w;
-        let _ = write!(
-            s,
-            r#"<line x1="{lx:.1}" x2="{:.1}" y1="12" y2="12" stroke="{}" stroke-width="3"/><text x="{:.1}" y="16" font-size="11">{}</text>"#,
-            lx + 10.0,
-            esc(se.color),
-            lx + 13.0,
-            esc(se.label)
-        );
-        lx -= 10.0;
-    }
-    s.push_str("</svg>");
-    s
+        for se in series {
+            chart
+                .draw_series(LineSeries::new(envelope(t, se.values, cols), rgb(se.color).stroke_width(1)))?;
+        }
+        root.draw(&Text::new(title.to_string(), (ML as i32, 4), title_font(13.0)))?;
+        let mut lx = W - MR - 8.0;
+        for se in series.iter().rev() {
+            lx -= 12.0 + 7.0 * se.label.chars().count() as f64;
+            let x = lx as i32;
+            root.draw(&PathElement::new(vec![(x, 12), (x + 10, 12)], rgb(se.color).stroke_width(3)))?;
+            root.draw(&Text::new(
+                se.label.to_string(),
+                (x + 13, 12),
+                anchored(font(11.0), HPos::Left, VPos::Center),
+            ))?;
+            lx -= 10.0;
+        }
+        Ok(())
+    })
 }
 
 /// One bar group of the error-budget chart.
@@ -256,46 +292,44 @@ pub struct Bar<'a> {
 
 /// Horizontal bars: error share (solid) against sample share (thin) per region.
 pub fn budget_chart(title: &str, bars: &[Bar<'_>]) -> String {
-    let label_w = 300.0;
-    let row = 26.0;
-    let h = MT + 12.0 + row * bars.len() as f64 + 20.0;
-    let pw = W - label_w - MR - 60.0;
-    let mut s = String::new();
-    let _ = write!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {W} {h}" width="{W}" height="{h}" role="img" aria-label="{}">"#,
-        esc(title)
-    );
-    let _ = write!(
-        s,
-        r##"<text x="4" y="15" font-size="13" font-weight="bold">{}</text><rect x="{:.1}" y="6" width="12" height="8" fill="#c0392b"/><text x="{:.1}" y="14" font-size="11">share of squared error</text><rect x="{:.1}" y="9" width="12" height="3" fill="#555"/><text x="{:.1}" y="14" font-size="11">share of samples</text>"##,
-        esc(title),
-        W - 330.0,
-        W - 314.0,
-        W - 160.0,
-        W - 144.0
-    );
-    for (i, b) in bars.iter().enumerate() {
-        let y = MT + 12.0 + row * i as f64;
-        let we = (b.error.clamp(0.0, 1.0)) * pw;
-        let ws = (b.samples.clamp(0.0, 1.0)) * pw;
-        let _ = write!(
-            s,
-            r##"<text x="{:.1}" y="{:.1}" text-anchor="end" font-size="11">{}</text><rect x="{label_w}" y="{:.1}" width="{pw:.1}" height="14" fill="#f2f2f2"/><rect x="{label_w}" y="{:.1}" width="{we:.1}" height="14" fill="#c0392b"/><rect x="{label_w}" y="{:.1}" width="{ws:.1}" height="4" fill="#555"/><text x="{:.1}" y="{:.1}" font-size="11">{:.0} % / {:.0} %</text>"##,
-            label_w - 6.0,
-            y + 11.0,
-            esc(b.label),
-            y,
-            y,
-            y + 16.0,
-            label_w + pw + 6.0,
-            y + 11.0,
-            100.0 * b.error,
-            100.0 * b.samples
-        );
-    }
-    s.push_str("</svg>");
-    s
+    let label_w = 300;
+    let row = 26;
+    let h = MT + 12.0 + (row * bars.len() as i32) as f64 + 20.0;
+    let pw = (W - label_w as f64 - MR - 60.0) as i32;
+    let red = RGBColor(0xc0, 0x39, 0x2b);
+    let w = W as i32;
+    render(title, W, h, |root| {
+        let left =
+            |s: String, x: i32, y: i32| Text::new(s, (x, y), anchored(font(11.0), HPos::Left, VPos::Center));
+        root.draw(&Text::new(title.to_string(), (4, 4), title_font(13.0)))?;
+        root.draw(&Rectangle::new([(w - 330, 6), (w - 318, 14)], red.filled()))?;
+        root.draw(&left("share of squared error".into(), w - 314, 10))?;
+        root.draw(&Rectangle::new([(w - 160, 9), (w - 148, 12)], grey(0x55).filled()))?;
+        root.draw(&left("share of samples".into(), w - 144, 10))?;
+        for (i, b) in bars.iter().enumerate() {
+            let y = MT as i32 + 12 + row * i as i32;
+            let we = (b.error.clamp(0.0, 1.0) * pw as f64).round() as i32;
+            let ws = (b.samples.clamp(0.0, 1.0) * pw as f64).round() as i32;
+            root.draw(&Text::new(
+                b.label.to_string(),
+                (label_w - 6, y + 7),
+                anchored(font(11.0), HPos::Right, VPos::Center),
+            ))?;
+            root.draw(&Rectangle::new([(label_w, y), (label_w + pw, y + 14)], grey(0xf2).filled()))?;
+            if we > 0 {
+                root.draw(&Rectangle::new([(label_w, y), (label_w + we, y + 14)], red.filled()))?;
+            }
+            if ws > 0 {
+                root.draw(&Rectangle::new([(label_w, y + 16), (label_w + ws, y + 20)], grey(0x55).filled()))?;
+            }
+            root.draw(&left(
+                format!("{:.0} % / {:.0} %", 100.0 * b.error, 100.0 * b.samples),
+                label_w + pw + 6,
+                y + 7,
+            ))?;
+        }
+        Ok(())
+    })
 }
 
 /// Line colours for charts with many series (colour-blind-safe order first).
@@ -311,8 +345,6 @@ pub fn history_chart(title: &str, y_label: &str, series: &[(String, Vec<Option<f
     let n = series.iter().map(|(_, v)| v.len()).max().unwrap_or(0).max(1);
     let legend_w = 170.0;
     let h = 300.0;
-    let pw = W - ML - MR - legend_w;
-    let ph = h - MT - MB;
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for v in series.iter().flat_map(|(_, v)| v.iter().flatten()).filter(|v| v.is_finite() && **v > 0.0) {
         lo = lo.min(*v);
@@ -325,85 +357,61 @@ pub fn history_chart(title: &str, y_label: &str, series: &[(String, Vec<Option<f
     if lhi <= llo {
         lhi = llo + 1.0;
     }
-    let x_of = |i: usize| if n == 1 { ML + pw / 2.0 } else { ML + i as f64 / (n - 1) as f64 * pw };
-    let y_of = |v: f64| MT + (lhi - v.log10()) / (lhi - llo) * ph;
-    let mut s = String::new();
-    let _ = write!(
-        s,
-        r##"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {W} {h}" width="{W}" height="{h}" role="img" aria-label="{}"><rect x="{ML}" y="{MT}" width="{pw}" height="{ph}" fill="#fff" stroke="#999"/>"##,
-        esc(title)
-    );
-    // Decades, and 2 and 5 within them when the range is short.
+    // Grid: decades, and 2 and 5 within them when the range is short.
     let mults: &[f64] = if lhi - llo <= 2.0 { &[1.0, 2.0, 5.0] } else { &[1.0] };
+    let mut y_keys = Vec::new();
     let mut e = llo;
     while e <= lhi {
-        for m in mults {
-            let v = m * 10f64.powf(e);
-            if v.log10() > lhi + 1e-9 {
-                continue;
-            }
-            let y = y_of(v);
-            let _ = write!(
-                s,
-                r##"<line x1="{ML}" x2="{:.1}" y1="{y:.1}" y2="{y:.1}" stroke="{}"/><text x="{:.1}" y="{:.1}" text-anchor="end" font-size="11">{}</text>"##,
-                ML + pw,
-                if *m == 1.0 { "#d0d0d0" } else { "#eeeeee" },
-                ML - 4.0,
-                y + 4.0,
-                tick_label(v)
-            );
-        }
+        y_keys.extend(mults.iter().map(|m| m * 10f64.powf(e)).filter(|v| v.log10() <= lhi + 1e-9));
         e += 1.0;
     }
+    // Iterations 1..n; one iteration sits in the middle.
+    let (x0, x1) = if n == 1 { (0.5, 1.5) } else { (1.0, n as f64) };
     let every = n.div_ceil(20).max(1);
-    for i in (0..n).step_by(every) {
-        let x = x_of(i);
-        let _ = write!(
-            s,
-            r##"<line x1="{x:.1}" x2="{x:.1}" y1="{MT}" y2="{:.1}" stroke="#eee"/><text x="{x:.1}" y="{:.1}" text-anchor="middle" font-size="11">{}</text>"##,
-            MT + ph,
-            MT + ph + 14.0,
-            i + 1
-        );
-    }
-    for (k, (label, v)) in series.iter().enumerate() {
-        let color = PALETTE[k % PALETTE.len()];
-        let pts: Vec<(f64, f64)> = v
-            .iter()
-            .enumerate()
-            .filter_map(|(i, y)| y.filter(|y| y.is_finite() && *y > 0.0).map(|y| (x_of(i), y_of(y))))
-            .collect();
-        let line: Vec<String> = pts.iter().map(|(x, y)| format!("{x:.1},{y:.1}")).collect();
-        let _ = write!(
-            s,
-            r#"<polyline fill="none" stroke="{color}" stroke-width="1.5" points="{}"/>"#,
-            line.join(" ")
-        );
-        for (x, y) in &pts {
-            let _ = write!(s, r#"<circle cx="{x:.1}" cy="{y:.1}" r="3" fill="{color}"/>"#);
+    let x_keys: Vec<f64> = (1..=n).step_by(every).map(|i| i as f64).collect();
+    render(title, W, h, |root| {
+        let mut chart = ChartBuilder::on(root)
+            .margin_top(MT as i32)
+            .margin_right((MR + legend_w) as i32)
+            .x_label_area_size(MB as i32)
+            .y_label_area_size(ML as i32)
+            .build_cartesian_2d(
+                Keyed { inner: RangedCoordf64::from(x0..x1), keys: x_keys },
+                Keyed { inner: LogCoord::from((10f64.powf(llo)..10f64.powf(lhi)).log_scale()), keys: y_keys },
+            )?;
+        chart
+            .configure_mesh()
+            .x_label_formatter(&|v| format!("{}", v.round()))
+            .y_label_formatter(&|v| tick_label(*v))
+            .bold_line_style(grey(0xd8))
+            .light_line_style(TRANSPARENT)
+            .axis_style(grey(0x99))
+            .label_style(font(11.0))
+            .axis_desc_style(font(11.0))
+            .x_desc("iteration")
+            .y_desc(format!("{y_label} (log)"))
+            .draw()?;
+        for (k, (label, v)) in series.iter().enumerate() {
+            let color = rgb(PALETTE[k % PALETTE.len()]);
+            let pts: Vec<(f64, f64)> = v
+                .iter()
+                .enumerate()
+                .filter_map(|(i, y)| y.filter(|y| y.is_finite() && *y > 0.0).map(|y| ((i + 1) as f64, y)))
+                .collect();
+            chart.draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(1)))?;
+            chart.draw_series(pts.iter().map(|p| Circle::new(*p, 3, color.filled())))?;
+            let ly = MT as i32 + 8 + 16 * k as i32;
+            let lx = (W - MR - legend_w) as i32 + 12;
+            root.draw(&PathElement::new(vec![(lx, ly), (lx + 14, ly)], color.stroke_width(3)))?;
+            root.draw(&Text::new(
+                label.clone(),
+                (lx + 18, ly),
+                anchored(font(11.0), HPos::Left, VPos::Center),
+            ))?;
         }
-        let ly = MT + 8.0 + 16.0 * k as f64;
-        let lx = ML + pw + 12.0;
-        let _ = write!(
-            s,
-            r#"<line x1="{lx:.1}" x2="{:.1}" y1="{ly:.1}" y2="{ly:.1}" stroke="{color}" stroke-width="3"/><text x="{:.1}" y="{:.1}" font-size="11">{}</text>"#,
-            lx + 14.0,
-            lx + 18.0,
-            ly + 4.0,
-            esc(label)
-        );
-    }
-    let _ = write!(
-        s,
-        r#"<text x="{ML}" y="15" font-size="13" font-weight="bold">{}</text><text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="11">iteration</text><text x="14" y="{:.1}" font-size="11" transform="rotate(-90 14 {:.1})" text-anchor="middle">{} (log)</text></svg>"#,
-        esc(title),
-        ML + pw / 2.0,
-        h - 4.0,
-        MT + ph / 2.0,
-        MT + ph / 2.0,
-        esc(y_label)
-    );
-    s
+        root.draw(&Text::new(title.to_string(), (ML as i32, 4), title_font(13.0)))?;
+        Ok(())
+    })
 }
 
 /// Points with optional error bars, for [`xy_chart`].
@@ -447,108 +455,79 @@ pub fn xy_chart(
         .flat_map(|p| p.y.iter().enumerate().flat_map(move |(i, y)| [y + err(p, i), y - err(p, i)]))
         .chain(lines.iter().flat_map(|l| l.y.iter().copied()));
     let (y0, y1) = padded_range(ys);
-    let (pw, ph) = (W - ML - MR, H - MT - MB);
-    let xp = |x: f64| ML + (x - x0) / (x1 - x0) * pw;
-    let yp = |y: f64| MT + (y1 - y) / (y1 - y0) * ph;
-    let mut s = String::new();
-    let _ = write!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {W} {H}" width="{W}" height="{H}" role="img" aria-label="{}">"#,
-        esc(title)
-    );
-    let _ = write!(s, r##"<rect x="{ML}" y="{MT}" width="{pw}" height="{ph}" fill="#fff" stroke="#999"/>"##);
-    for v in ticks(y0, y1, 6) {
-        let y = yp(v);
-        let _ = write!(
-            s,
-            r##"<line x1="{ML}" x2="{:.1}" y1="{y:.1}" y2="{y:.1}" stroke="#eee"/><text x="{:.1}" y="{:.1}" text-anchor="end" font-size="11">{}</text>"##,
-            ML + pw,
-            ML - 4.0,
-            y + 4.0,
-            tick_label(v)
-        );
-    }
-    for v in ticks(x0, x1, 6) {
-        let x = xp(v);
-        let _ = write!(
-            s,
-            r##"<line x1="{x:.1}" x2="{x:.1}" y1="{MT}" y2="{:.1}" stroke="#eee"/><text x="{x:.1}" y="{:.1}" text-anchor="middle" font-size="11">{}</text>"##,
-            MT + ph,
-            MT + ph + 14.0,
-            tick_label(v)
-        );
-    }
-    for l in lines {
-        let pts: Vec<String> =
-            l.x.iter()
-                .zip(l.y)
-                .filter(|(x, y)| x.is_finite() && y.is_finite())
-                .map(|(x, y)| format!("{:.1},{:.1}", xp(*x), yp(*y)))
-                .collect();
-        let dash = if l.dashed { r#" stroke-dasharray="5,4""# } else { "" };
-        let _ = write!(
-            s,
-            r#"<polyline fill="none" stroke="{}" stroke-width="1.6"{dash} points="{}"/>"#,
-            esc(l.color),
-            pts.join(" ")
-        );
-    }
-    for p in points {
-        for (i, (x, y)) in p.x.iter().zip(p.y).enumerate() {
-            if !(x.is_finite() && y.is_finite()) {
-                continue;
+    render(title, W, H, |root| {
+        let mut chart = ChartBuilder::on(root)
+            .margin_top(MT as i32)
+            .margin_right(MR as i32)
+            .x_label_area_size(MB as i32)
+            .y_label_area_size(ML as i32)
+            .build_cartesian_2d(x0..x1, y0..y1)?;
+        chart
+            .configure_mesh()
+            .x_labels(6)
+            .y_labels(6)
+            .x_label_formatter(&|v| tick_label(*v))
+            .y_label_formatter(&|v| tick_label(*v))
+            .bold_line_style(grey(0xee))
+            .light_line_style(TRANSPARENT)
+            .axis_style(grey(0x99))
+            .label_style(font(11.0))
+            .axis_desc_style(font(11.0))
+            .x_desc(x_label)
+            .y_desc(y_label)
+            .draw()?;
+        for l in lines {
+            let pts: Vec<(f64, f64)> =
+                l.x.iter()
+                    .zip(l.y)
+                    .filter(|(x, y)| x.is_finite() && y.is_finite())
+                    .map(|(x, y)| (*x, *y))
+                    .collect();
+            let style = rgb(l.color).stroke_width(2);
+            if l.dashed {
+                chart.draw_series(DashedLineSeries::new(pts, 5, 4, style))?;
+            } else {
+                chart.draw_series(LineSeries::new(pts, style))?;
             }
-            let e = err(p, i);
-            if e.is_finite() && e > 0.0 {
-                let _ = write!(
-                    s,
-                    r#"<line x1="{0:.1}" x2="{0:.1}" y1="{1:.1}" y2="{2:.1}" stroke="{3}"/>"#,
-                    xp(*x),
-                    yp(y + e),
-                    yp(y - e),
-                    esc(p.color)
-                );
-            }
-            let _ = write!(
-                s,
-                r#"<circle cx="{:.1}" cy="{:.1}" r="2.6" fill="{}"/>"#,
-                xp(*x),
-                yp(*y),
-                esc(p.color)
-            );
         }
-    }
-    let _ = write!(
-        s,
-        r#"<text x="{ML}" y="16" font-size="13" font-weight="bold">{}</text><text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="11">{}</text><text x="14" y="{:.1}" font-size="11" transform="rotate(-90 14 {:.1})" text-anchor="middle">{}</text>"#,
-        esc(title),
-        ML + pw / 2.0,
-        H - 6.0,
-        esc(x_label),
-        MT + ph / 2.0,
-        MT + ph / 2.0,
-        esc(y_label)
-    );
-    let mut lx = ML;
-    let legend = points
-        .iter()
-        .map(|p| (p.label, p.color, true))
-        .chain(lines.iter().map(|l| (l.label, l.color, false)));
-    for (label, color, dot) in legend.filter(|l| !l.0.is_empty()) {
-        let mark = if dot {
-            format!(r#"<circle cx="{:.1}" cy="31" r="3" fill="{}"/>"#, lx + 5.0, esc(color))
-        } else {
-            format!(
-                r#"<line x1="{lx:.1}" x2="{:.1}" y1="31" y2="31" stroke="{}" stroke-width="2"/>"#,
-                lx + 12.0,
-                esc(color)
-            )
-        };
-        let _ = write!(s, r#"{mark}<text x="{:.1}" y="35" font-size="11">{}</text>"#, lx + 16.0, esc(label));
-        lx += 28.0 + 6.5 * label.chars().count() as f64;
-    }
-    s.push_str("</svg>");
-    s
+        for p in points {
+            let color = rgb(p.color);
+            for (i, (x, y)) in p.x.iter().zip(p.y).enumerate() {
+                if !(x.is_finite() && y.is_finite()) {
+                    continue;
+                }
+                let e = err(p, i);
+                if e.is_finite() && e > 0.0 {
+                    chart.draw_series(std::iter::once(PathElement::new(
+                        vec![(*x, y + e), (*x, y - e)],
+                        color,
+                    )))?;
+                }
+                chart.draw_series(std::iter::once(Circle::new((*x, *y), 3, color.filled())))?;
+            }
+        }
+        root.draw(&Text::new(title.to_string(), (ML as i32, 4), title_font(13.0)))?;
+        let mut lx = ML;
+        let legend = points
+            .iter()
+            .map(|p| (p.label, p.color, true))
+            .chain(lines.iter().map(|l| (l.label, l.color, false)));
+        for (label, color, dot) in legend.filter(|l| !l.0.is_empty()) {
+            let x = lx as i32;
+            if dot {
+                root.draw(&Circle::new((x + 5, 31), 3, rgb(color).filled()))?;
+            } else {
+                root.draw(&PathElement::new(vec![(x, 31), (x + 12, 31)], rgb(color).stroke_width(2)))?;
+            }
+            root.draw(&Text::new(
+                label.to_string(),
+                (x + 16, 31),
+                anchored(font(11.0), HPos::Left, VPos::Center),
+            ))?;
+            lx += 28.0 + 6.5 * label.chars().count() as f64;
+        }
+        Ok(())
+    })
 }
 
 #[cfg(test)]
@@ -556,25 +535,21 @@ mod tests {
     use super::*;
 
     #[test]
-    fn ticks_are_round_and_cover_the_range() {
-        let t = ticks(0.0, 70.0, 10);
-        assert_eq!(t.first(), Some(&0.0));
-        assert_eq!(t.last(), Some(&70.0));
-        assert!(t.windows(2).all(|w| (w[1] - w[0] - 10.0).abs() < 1e-9));
-        let t = ticks(-1.3, 2.6, 5);
-        assert!(t.iter().all(|v| (v * 2.0).fract().abs() < 1e-9));
-        assert_eq!(ticks(5.0, 5.0, 5), vec![5.0]);
-    }
-
-    #[test]
     fn envelope_keeps_spikes_and_bounds_point_count() {
         let n = 70_000;
         let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
         let mut y = vec![0.0; n];
         y[31_234] = 100.0;
-        let pts = envelope(&t, &y, &|x| x, &|v| v, 800);
-        assert!(pts.split(' ').filter(|p| !p.is_empty()).count() <= 2 * 800 + 2);
-        assert!(pts.contains(",100.0"));
+        let pts = envelope(&t, &y, 800);
+        assert!(pts.len() <= 2 * 800 + 2);
+        assert!(pts.contains(&(31.234, 100.0)));
+        // And the chart itself: one polyline of at most ~2 points per pixel column.
+        let c =
+            line_chart("long", "N m", &t, &[Series { values: &y, color: "#1f77b4", label: "x" }], &[], 300.0);
+        let line = c.split("<polyline").find(|p| p.contains(r##"stroke="#1F77B4""##)).unwrap();
+        let pts = line.split("points=\"").nth(1).unwrap().split('"').next().unwrap();
+        assert!(pts.split_whitespace().count() <= 2 * 900, "{}", pts.split_whitespace().count());
+        assert!(c.len() < 60_000, "{}", c.len());
     }
 
     #[test]
@@ -590,9 +565,13 @@ mod tests {
             200.0,
         );
         assert!(c.starts_with("<svg") && c.ends_with("</svg>"));
-        assert!(c.contains("a&lt;b") && !c.contains("NaN"));
+        assert!(c.contains("a&lt;b") && !c.contains("NaN") && !c.contains("<script"));
+        assert!(c.contains(r#"role="img""#) && c.contains(">time [s]<"));
         let b = budget_chart("t", &[Bar { label: "forward / steady", error: 0.7, samples: 0.2 }]);
-        assert!(b.contains("70 % / 20 %"));
+        assert!(b.contains("70 % / 20 %") && b.contains(">forward / steady<"));
+        assert_eq!(rgb("#1f77b4"), RGBColor(0x1f, 0x77, 0xb4));
+        assert_eq!(rgb("#888"), RGBColor(0x88, 0x88, 0x88));
+        assert_eq!(rgb("red"), BLACK);
     }
 
     #[test]
@@ -614,12 +593,11 @@ mod tests {
         assert!(!svg.contains("NaN") && !svg.contains("inf"));
         // Two finite points, one error bar, one dashed line, and the legend's dot.
         assert_eq!(svg.matches("<circle").count(), 3);
-        assert_eq!(svg.matches(r##"stroke="#000"/>"##).count(), 1);
-        assert!(svg.contains("stroke-dasharray") && svg.contains(">fit<"));
+        assert_eq!(svg.matches(r##"<polyline fill="none" opacity="1" stroke="#000000""##).count(), 1);
+        assert!(svg.matches(r##"stroke="#FF0000""##).count() > 3 && svg.contains(">fit<"));
         // Nothing to draw: still well formed.
         let e = xy_chart("t", "x", "y", &[], &[]);
         assert!(e.ends_with("</svg>") && !e.contains("NaN"));
-        assert_eq!(ticks(0.0, 10.0, 6).len(), 6);
         assert_eq!(
             (tick_label(-100.0), tick_label(2.5), tick_label(0.0)),
             ("-100".into(), "2.5".into(), "0".into())
@@ -636,6 +614,7 @@ mod tests {
         assert!(c.starts_with("<svg") && c.ends_with("</svg>"));
         assert_eq!(c.matches("<circle").count(), 4);
         assert!(c.contains(">I_DC<") && c.contains(">0.1<") && c.contains(">1<") && c.contains(">2<"));
+        assert!(c.contains(">3<") && !c.contains(">4<"));
         assert!(!c.contains("NaN") && !c.contains("inf"));
         // One iteration, no values: still well formed.
         let c = history_chart("t", "y", &[("a".to_string(), vec![None])]);

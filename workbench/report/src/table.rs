@@ -54,6 +54,16 @@ fn region_phrase(s: &RegionShare) -> String {
 /// The whole terminal report.
 pub fn render(r: &CompareResult) -> String {
     let mut o = String::new();
+    header(&mut o, r);
+    metrics(&mut o, r);
+    regions(&mut o, r);
+    spans(&mut o, r);
+    structure(&mut o, r);
+    o
+}
+
+/// What was compared and how.
+fn header(o: &mut String, r: &CompareResult) {
     let s = &r.setup;
     let rates = match s.rates {
         RateSet::Programmed => "programmed",
@@ -85,7 +95,10 @@ pub fn render(r: &CompareResult) -> String {
     let _ =
         writeln!(o, "  residual = sim − meas; NRMSE = RMSE / norm. (the measured range, or span/10: a tenth of the channel's operating span when the run moves it less); * = derived");
     o.push('\n');
+}
 
+/// Whole-run figures per channel and the worst channel.
+fn metrics(o: &mut String, r: &CompareResult) {
     // Metrics.
     let worst = r.worst_channel().map(|c| c.name.clone());
     let mut rows = vec![vec![
@@ -150,7 +163,11 @@ pub fn render(r: &CompareResult) -> String {
         }
     }
     o.push('\n');
+}
 
+/// Operating regions and each channel's error budget.
+fn regions(o: &mut String, r: &CompareResult) {
+    let worst_c = r.worst_channel().filter(|c| !negligible(c));
     // Regions.
     let _ = writeln!(o, "Operating regions (share of samples):");
     if let Some(c) = r.channels.first() {
@@ -191,7 +208,11 @@ pub fn render(r: &CompareResult) -> String {
         }
     }
     o.push('\n');
+}
 
+/// The worst time spans.
+fn spans(o: &mut String, r: &CompareResult) {
+    let s = &r.setup;
     // Spans.
     let _ = writeln!(o, "Worst {} s spans (RMS of the residual):", s.window_s);
     let mut rows = Vec::new();
@@ -231,7 +252,10 @@ pub fn render(r: &CompareResult) -> String {
         }
     }
     o.push('\n');
+}
 
+/// Whiteness and cross-correlation of the residuals.
+fn structure(o: &mut String, r: &CompareResult) {
     // Residual structure.
     let _ = writeln!(
         o,
@@ -287,7 +311,6 @@ pub fn render(r: &CompareResult) -> String {
         r.timing.0,
         r.timing.1
     );
-    o
 }
 
 #[cfg(test)]
