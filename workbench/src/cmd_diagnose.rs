@@ -193,6 +193,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
         base,
         params: twin.model.params(),
         regions: region_masks(&al, &limits),
+        progress: true,
         ..Options::default()
     };
     if let Some(t) = args.threads {

@@ -61,8 +61,13 @@ library_tests! {
 fn every_library_effect_has_a_test() {
     let cases: Vec<&str> = library_cases().iter().map(|c| c.params[0].0).collect();
     assert_eq!(cases.len(), model_core::effects::LIBRARY.len());
+    // Each library effect is its own test above (they run in parallel and fail by
+    // name): a declared library effect without one is a test that does not run.
+    let this_file = include_str!("hidden_effects.rs");
     for id in model_core::effects::LIBRARY {
         assert!(cases.contains(id), "{id} has no hidden-effect case");
+        let line = format!("finds_{id} => \"{id}\",");
+        assert!(this_file.contains(&line), "add `{line}` to library_tests! in this file");
     }
 }
 

@@ -55,6 +55,8 @@ pub struct Options {
     pub refit: usize,
     /// Worker threads.
     pub threads: usize,
+    /// Show a progress bar of the simulations on stderr (drawn only on a terminal).
+    pub progress: bool,
     /// Most samples used in the regressions (the series is strided down to this).
     pub max_fit_samples: usize,
     /// Residual energy over the noise expectation up to which a residual is noise-like.
@@ -81,6 +83,7 @@ impl Default for Options {
             max_selected: 3,
             refit: 3,
             threads: std::thread::available_parallelism().map_or(2, |n| n.get()).min(8),
+            progress: false,
             max_fit_samples: 12_000,
             noise_like_ratio: 1.2,
             min_reduction_of_noise: 0.01,

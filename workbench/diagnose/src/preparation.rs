@@ -4,6 +4,7 @@
 
 use model_core::Effects;
 
+use simrod_io::progress::Progress;
 use simrod_numerics::stats::moving_mean;
 
 use super::engine::{Options, RegionChange, Twin};
@@ -110,9 +111,25 @@ pub(super) fn noise_sigma(r: &[f64], h: usize) -> f64 {
 type RunResult = Result<Vec<Vec<f32>>, String>;
 
 /// One simulation per job, on `threads` workers; results in job order.
-pub(super) fn run_all(twin: &dyn Twin, jobs: &[Effects], threads: usize) -> Vec<RunResult> {
+pub(super) fn run_all(twin: &dyn Twin, jobs: &[Effects], o: &Options) -> Vec<RunResult> {
     use rayon::prelude::*;
-    let run = || jobs.par_iter().map(|fx| twin.run(fx)).collect();
+    let bar = match o.progress {
+        true => Progress::new("simulations", jobs.len()),
+        false => Progress::hidden(),
+    };
+    let run = || {
+        let out = jobs
+            .par_iter()
+            .map(|fx| {
+                let r = twin.run(fx);
+                bar.tick("");
+                r
+            })
+            .collect();
+        bar.finish();
+        out
+    };
+    let threads = o.threads;
     // A pool of the requested size (`--threads`); if one cannot be made, rayon's global
     // pool does the same work.
     match rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build() {

@@ -58,7 +58,7 @@ impl Problem<'_> {
     /// Simulate each of `thetas` in parallel.
     fn run_many(&self, thetas: &[Vec<f64>]) -> Vec<Option<Vec<Vec<f32>>>> {
         let jobs: Vec<Effects> = thetas.iter().map(|t| self.effects(t)).collect();
-        run_all(self.twin, &jobs, self.o.threads)
+        run_all(self.twin, &jobs, self.o)
             .into_iter()
             .map(|r| r.ok().filter(|y| check_shape(self.p, y).is_ok()))
             .collect()

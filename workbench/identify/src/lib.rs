@@ -27,7 +27,7 @@ pub mod campaign;
 pub mod friction;
 pub mod maps;
 pub mod plateau;
-pub mod progress;
+pub use simrod_io::progress;
 pub mod report;
 pub mod resistance;
 pub mod run;

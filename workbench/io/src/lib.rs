@@ -8,6 +8,7 @@ pub mod effects_file;
 pub mod error;
 pub mod measure;
 pub mod profile_file;
+pub mod progress;
 pub mod sha256;
 pub mod sim_csv;
 pub mod toml_util;
