@@ -21,6 +21,7 @@ use model_core::model::DT_US_RANGE;
 use model_core::{Builtin, Channel, Effects, Inputs, Profile, ProfileSet, SetPoints, MEASURED};
 
 use super::ModelOptions;
+use simrod_io::measure::resample::Interp;
 use simrod_io::measure::{Measurement, GAP_CHANNEL, SETPOINT_LOAD_L, SETPOINT_LOAD_R, SETPOINT_THROTTLE};
 
 /// Step used when the measurement's own interval cannot be the model step.
@@ -307,25 +308,6 @@ fn choose_grid(time: &[f64]) -> Result<Grid, TwinError> {
     })
 }
 
-/// Linear interpolation of `(t, y)` at increasing `grid` times (edges hold).
-fn resample(t: &[f64], y: &[f64], grid: &[f64]) -> Vec<f64> {
-    let mut out = Vec::with_capacity(grid.len());
-    let mut j = 0usize;
-    for &g in grid {
-        while j + 2 < t.len() && t[j + 1] <= g {
-            j += 1;
-        }
-        let (Some(&ta), Some(&tb), Some(&ya), Some(&yb)) = (t.get(j), t.get(j + 1), y.get(j), y.get(j + 1))
-        else {
-            out.push(y.first().copied().unwrap_or(f64::NAN));
-            continue;
-        };
-        let f = ((g - ta) / (tb - ta)).clamp(0.0, 1.0);
-        out.push(ya + f * (yb - ya));
-    }
-    out
-}
-
 /// A signal of the file on the comparison grid; a length mismatch is a user-data error.
 fn on_grid(meas: &Measurement, name: &str, grid: &Grid) -> Result<Option<Vec<f64>>, TwinError> {
     let Some(sig) = meas.signal(name) else {
@@ -340,7 +322,7 @@ fn on_grid(meas: &Measurement, name: &str, grid: &Grid) -> Result<Option<Vec<f64
     }
     Ok(Some(match &grid.resample_to {
         None => sig.values.clone(),
-        Some(g) => resample(&meas.time_s, &sig.values, g),
+        Some(g) => Interp::new(&meas.time_s, g).apply(&sig.values),
     }))
 }
 
@@ -440,7 +422,7 @@ mod tests {
         let grid = g.resample_to.unwrap();
         assert_eq!(grid.len(), (299.0 * 1.5005) as usize + 1);
         let y: Vec<f64> = t.iter().map(|x| 3.0 * x + 1.0).collect();
-        let r = resample(&t, &y, &grid);
+        let r = Interp::new(&t, &grid).apply(&y);
         for (g, v) in grid.iter().zip(&r) {
             assert!((v - (3.0 * g + 1.0)).abs() < 1e-12);
         }

@@ -85,42 +85,60 @@ pub(crate) fn check_time(raw: &RawTable, t: &[f64], opts: &LoadOptions) -> Resul
     Ok(Some(Grid { t0: t[0], dt: m, n: n as usize, gaps }))
 }
 
+/// Linear interpolation from increasing sample times onto increasing grid times: the
+/// interval and weight of every grid time, found once and applied to any number of
+/// channels sampled at those times. Grid times outside the samples hold the edge value;
+/// a grid time on a sample gives that sample exactly.
+#[derive(Debug, Clone)]
+pub struct Interp {
+    /// Per grid time: the interval `[j, j + 1]` and the weight of `j + 1`.
+    idx: Vec<(usize, f64)>,
+}
+
+impl Interp {
+    /// The interpolation from `t` onto `grid` (`t` non-empty, both increasing).
+    pub fn new(t: &[f64], grid: &[f64]) -> Self {
+        let mut idx = Vec::with_capacity(grid.len());
+        let mut j = 0usize;
+        for &tk in grid {
+            while j + 2 < t.len() && t[j + 1] <= tk {
+                j += 1;
+            }
+            let a = t.get(j).copied().unwrap_or(tk);
+            let b = t.get(j + 1).copied().unwrap_or(a);
+            let w = if b > a { ((tk - a) / (b - a)).clamp(0.0, 1.0) } else { 0.0 };
+            idx.push((j, w));
+        }
+        Self { idx }
+    }
+
+    /// `values` (one per sample time) at the grid times; NaN where there are none.
+    pub fn apply(&self, values: &[f64]) -> Vec<f64> {
+        self.idx
+            .iter()
+            .map(|&(j, w)| {
+                let Some(&a) = values.get(j) else { return f64::NAN };
+                let b = values.get(j + 1).copied().unwrap_or(a);
+                if w == 0.0 {
+                    a
+                } else if w == 1.0 {
+                    b
+                } else {
+                    a + w * (b - a)
+                }
+            })
+            .collect()
+    }
+}
+
 /// Linear interpolation of every channel onto `g`, plus the gap mask when there are gaps.
 pub(crate) fn onto_grid(m: &Measurement, g: &Grid) -> Measurement {
-    let t = &m.time_s;
     let grid: Vec<f64> = (0..g.n).map(|k| g.t0 + k as f64 * g.dt).collect();
-    // For each grid time: the interval [j, j+1] and the weight of j+1.
-    let mut idx = Vec::with_capacity(g.n);
-    let mut j = 0usize;
-    for &tk in &grid {
-        while j + 2 < t.len() && t[j + 1] <= tk {
-            j += 1;
-        }
-        let (a, b) = (t[j], t.get(j + 1).copied().unwrap_or(t[j]));
-        let w = if b > a { ((tk - a) / (b - a)).clamp(0.0, 1.0) } else { 0.0 };
-        idx.push((j, w));
-    }
+    let interp = Interp::new(&m.time_s, &grid);
     let mut signals: Vec<Signal> = m
         .signals
         .iter()
-        .map(|s| Signal {
-            name: s.name.clone(),
-            unit: s.unit.clone(),
-            values: idx
-                .iter()
-                .map(|&(j, w)| {
-                    let a = s.values[j];
-                    let b = s.values.get(j + 1).copied().unwrap_or(a);
-                    if w == 0.0 {
-                        a
-                    } else if w == 1.0 {
-                        b
-                    } else {
-                        a + w * (b - a)
-                    }
-                })
-                .collect(),
-        })
+        .map(|s| Signal { name: s.name.clone(), unit: s.unit.clone(), values: interp.apply(&s.values) })
         .collect();
     if !g.gaps.is_empty() {
         signals.push(Signal {
