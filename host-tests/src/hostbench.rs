@@ -69,16 +69,6 @@ pub fn config(dt_us: u32) -> Config {
     }
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
 /// Time `reps` repetitions of a run (after one warm-up) in segments: `run` calls
 /// `lap()` after every [`SEGMENT`] steps and at its end, and returns its step count.
 fn case(name: &str, dt_us: u32, reps: usize, mut run: impl FnMut(&mut dyn FnMut()) -> u64) -> HostCase {
@@ -99,7 +89,14 @@ fn case(name: &str, dt_us: u32, reps: usize, mut run: impl FnMut(&mut dyn FnMut(
     let segments = runs.iter().map(Vec::len).min().unwrap_or(0);
     let fastest: f64 =
         (0..segments).map(|i| runs.iter().map(|l| l[i]).fold(f64::INFINITY, f64::min)).sum::<f64>() / n;
-    HostCase { name: name.to_string(), dt_us, steps, reps, ns_median: median(totals), ns_min: fastest }
+    HostCase {
+        name: name.to_string(),
+        dt_us,
+        steps,
+        reps,
+        ns_median: simrod_numerics::stats::median(&totals).unwrap_or(f64::NAN),
+        ns_min: fastest,
+    }
 }
 
 /// A whole TP07 run at `dt_us`, lapping every [`SEGMENT`] steps: the steps taken.

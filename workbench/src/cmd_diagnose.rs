@@ -21,7 +21,7 @@ use model_core::effects::DELAY_CAPACITY;
 use model_core::{Channel, Effects};
 use serde_json::{json, Map, Value};
 
-use crate::compare::{regions, CompareOptions};
+use crate::compare::regions;
 use crate::diagnose::twin::{fitted_channels, BuiltinProbe, RecordedTwin};
 use crate::diagnose::{self, Diagnosis, Options, VerdictKind};
 use crate::effects_file::{format_effects, summarize_effects, write_effects};
@@ -179,16 +179,14 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
     }
     let twin = MeasuredTwin::new(meas, &model, &InputSource::Recorded)
         .map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
-    check_delay(&base, twin.dt_us).map_err(|m| {
+    check_delay(&base, twin.grid.dt_us).map_err(|m| {
         CmdError::Usage(format!("{}: {m}", args.model.effects.as_deref().unwrap_or(Path::new("")).display()))
     })?;
     let al = twin.align(base).map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
     let fitted = fitted_series(&al, &src)?;
 
     let probe = BuiltinProbe::standard(model.clone(), fitted.channels.clone());
-    let limits = CompareOptions { model, ..CompareOptions::default() }
-        .limits()
-        .map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
+    let limits = regions::Limits::of_model(&model).map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
     let mut o = Options {
         base,
         params: twin.model.params(),
@@ -199,8 +197,8 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
     if let Some(t) = args.threads {
         o.threads = t as usize;
     }
-    let (step_note, samples, dt_us) = (twin.step_note.clone(), al.time_s.len(), al.dt_us);
-    let duration_s = al.time_s.last().copied().unwrap_or(0.0) - al.time_s.first().copied().unwrap_or(0.0);
+    let (step_note, samples, dt_us) = (al.grid.step_note.clone(), al.grid.time_s.len(), al.grid.dt_us);
+    let duration_s = al.grid.duration_s();
     let recorded = RecordedTwin { twin, channels: fitted.channels.clone() };
     let t1 = Instant::now();
     let diagnosis = diagnose::diagnose(&recorded, &fitted.series, &o, Some(&probe))
@@ -250,7 +248,7 @@ fn fitted_series(al: &Aligned, src: &str) -> Result<Fitted, CmdError> {
             return Err(CmdError::Usage(format!(
                 "{src}: {} is not a finite number at t = {:.6} s; diagnose needs every sample",
                 c.name(),
-                al.time_s.get(k).copied().unwrap_or(f64::NAN)
+                al.grid.time_s.get(k).copied().unwrap_or(f64::NAN)
             )));
         }
         f.channels.push(c);

@@ -66,13 +66,7 @@ pub fn baseline(
         .channels
         .iter()
         .map(|p| {
-            let mut e = metrics::residual(&p.meas, &p.sim);
-            for (r, gap) in e.iter_mut().zip(&al.gaps) {
-                if *gap {
-                    *r = f64::NAN;
-                }
-            }
-            let m = metrics::metrics(&p.name, &al.time_s, &p.meas, &e);
+            let (e, m) = metrics::paired(p, &al.grid.time_s, &al.grid.gaps);
             BaselineChannel {
                 name: p.name.clone(),
                 sim: p.sim.clone(),

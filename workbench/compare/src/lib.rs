@@ -19,7 +19,7 @@ mod tests;
 
 use std::time::Instant;
 
-use model_core::{Maps, RateSet, SpeedTarget, MEASURED};
+use model_core::{RateSet, SpeedTarget, MEASURED};
 
 use budget::RegionShare;
 use metrics::Metrics;
@@ -61,14 +61,6 @@ impl Default for CompareOptions {
             top_regions: 3,
             rules: RegionRules::default(),
         }
-    }
-}
-
-impl CompareOptions {
-    /// The operating limits of the region rules, from the twin's own data.
-    pub fn limits(&self) -> Result<regions::Limits, CompareError> {
-        let maps: Maps<'_> = self.model.maps()?;
-        Ok(regions::Limits::of(&self.model.params(), &maps))
     }
 }
 
@@ -176,17 +168,17 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
         return Err(CompareError::NoChannels);
     }
     let t1 = Instant::now();
-    let n = al.time_s.len();
-    let dt_s = f64::from(al.dt_us) * 1e-6;
+    let n = al.grid.time_s.len();
+    let dt_s = al.grid.dt_s();
 
-    let limits = opts.limits()?;
+    let limits = regions::Limits::of_model(&opts.model)?;
     let classes = regions::classify(&al, &opts.rules, &limits);
 
     // Inputs for the cross-correlation: the set points (the correlator adds their
     // step-to-step change: the change at row k drove the step ending at row k).
     let names = ["SuT Throttle", "Dm Left", "Dm Right"];
     let xin: Vec<(String, Vec<f64>)> =
-        names.iter().zip(&al.inputs).map(|(name, u)| ((*name).to_string(), u.clone())).collect();
+        names.iter().zip(&al.grid.set_points).map(|(name, u)| ((*name).to_string(), u.clone())).collect();
     let max_lag = (opts.max_lag_s / dt_s).round().max(0.0) as usize;
     let mut corr = residual::Correlator::new(&xin, n, dt_s, max_lag, opts.whiteness_lags);
     let window = ((opts.window_s / dt_s).round() as usize).max(1);
@@ -195,13 +187,7 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
         .channels
         .iter()
         .map(|p| {
-            let mut e = metrics::residual(&p.meas, &p.sim);
-            for (r, gap) in e.iter_mut().zip(&al.gaps) {
-                if *gap {
-                    *r = f64::NAN;
-                }
-            }
-            let m = metrics::metrics(&p.name, &al.time_s, &p.meas, &e);
+            let (e, m) = metrics::paired(p, &al.grid.time_s, &al.grid.gaps);
             (p.clone(), e, m)
         })
         .collect();
@@ -211,7 +197,7 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
     for ((p, e, m), st) in partial.drain(..).zip(stats) {
         let b = budget::budget(&classes.classes, &e);
         let top = budget::top_combined(&b, opts.top_regions);
-        let worst = spans::worst_spans(&al.time_s, &e, window, opts.spans);
+        let worst = spans::worst_spans(&al.grid.time_s, &e, window, opts.spans);
         let mut whiteness = st.whiteness;
         if whiteness.verdict == residual::Verdict::Coloured && within_resolution(opts, &p.name, m.rmse) {
             whiteness.verdict = residual::Verdict::Resolution;
@@ -233,8 +219,8 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
     }
     let t2 = Instant::now();
 
-    let mut notes = vec![al.step_note.clone()];
-    let in_gaps = al.gaps.iter().filter(|g| **g).count();
+    let mut notes = vec![al.grid.step_note.clone()];
+    let in_gaps = al.grid.gaps.iter().filter(|g| **g).count();
     if in_gaps > 0 {
         notes.push(format!("{in_gaps} samples inside interpolated gaps are left out"));
     }
@@ -253,11 +239,11 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
     Ok(CompareResult {
         setup: Setup {
             source: meas.source.display().to_string(),
-            dt_us: al.dt_us,
-            resampled: al.resampled,
-            step_note: al.step_note.clone(),
+            dt_us: al.grid.dt_us,
+            resampled: al.grid.resampled,
+            step_note: al.grid.step_note.clone(),
             samples: n,
-            duration_s: al.time_s.last().copied().unwrap_or(0.0) - al.time_s.first().copied().unwrap_or(0.0),
+            duration_s: al.grid.duration_s(),
             inputs,
             rates: opts.model.rates,
             speed_target: opts.model.speed_target,
@@ -266,8 +252,8 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
             speed_window_s: opts.model.sensors.speed_window_s,
             window_s: opts.window_s,
         },
-        time_s: al.time_s,
-        inputs: al.inputs,
+        time_s: al.grid.time_s,
+        inputs: al.grid.set_points,
         channels,
         regions: classes,
         notes,

@@ -89,6 +89,19 @@ pub fn residual(meas: &[f64], sim: &[f64]) -> Vec<f64> {
     meas.iter().zip(sim).map(|(m, s)| if m.is_finite() && s.is_finite() { s - m } else { f64::NAN }).collect()
 }
 
+/// The residual of one paired channel with the samples inside gaps masked (NaN), and
+/// its figures: what every comparison of a twin run with a measurement reports.
+pub fn paired(p: &simrod_twin::Paired, time_s: &[f64], gaps: &[bool]) -> (Vec<f64>, Metrics) {
+    let mut e = residual(&p.meas, &p.sim);
+    for (r, gap) in e.iter_mut().zip(gaps) {
+        if *gap {
+            *r = f64::NAN;
+        }
+    }
+    let m = metrics(&p.name, time_s, &p.meas, &e);
+    (e, m)
+}
+
 /// Figures of channel `name` from the measurement and its residual.
 pub fn metrics(name: &str, time_s: &[f64], meas: &[f64], e: &[f64]) -> Metrics {
     let (mut n, mut sum_y, mut sum_e, mut sum_e2) = (0usize, 0.0, 0.0, 0.0);

@@ -73,6 +73,11 @@ pub struct Limits {
 }
 
 impl Limits {
+    /// The limits of a twin, from its own data (`--data-dir` when given).
+    pub fn of_model(m: &simrod_twin::ModelOptions) -> Result<Self, simrod_twin::TwinError> {
+        Ok(Self::of(&m.params(), &m.maps()?))
+    }
+
     /// The limits of the given parameters and maps.
     pub fn of(p: &Params, maps: &Maps<'_>) -> Self {
         let absmax = |z: &[f32]| z.iter().fold(0.0f64, |a, v| a.max(f64::from(v.abs())));
@@ -223,7 +228,7 @@ fn measured<'a>(al: &'a Aligned, name: &str) -> Option<&'a [f64]> {
 
 /// Classify every sample of an aligned run.
 pub fn classify(al: &Aligned, rules: &RegionRules, limits: &Limits) -> Classification {
-    let n = al.time_s.len();
+    let n = al.grid.time_s.len();
     let mut notes = Vec::new();
     let speed_raw = match measured(al, "SuTMotorEnc") {
         Some(v) => v,
@@ -232,7 +237,7 @@ pub fn classify(al: &Aligned, rules: &RegionRules, limits: &Limits) -> Classific
             al.sim_speed.as_slice()
         }
     };
-    let dt = f64::from(al.dt_us) * 1e-6;
+    let dt = al.grid.dt_s();
     let w = ((rules.smooth_s / dt).round() as usize).max(1) | 1;
     let speed = simrod_numerics::stats::moving_mean(
         &simrod_numerics::stats::moving_mean(&fill_gaps(speed_raw), w / 2),
@@ -244,7 +249,7 @@ pub fn classify(al: &Aligned, rules: &RegionRules, limits: &Limits) -> Classific
         notes.push("no V_DC/I_DC in the file: the SuT power limit rule is off".to_string());
     }
     let torque = [measured(al, "C_Kistler_L"), measured(al, "C_Kistler_R")];
-    let [thr, ll, lr] = &al.inputs;
+    let [thr, ll, lr] = &al.grid.set_points;
     let db = rules.deadband_pct;
     let mut dir = Direction::Forward;
     let mut classes = Vec::with_capacity(n);
@@ -253,7 +258,8 @@ pub fn classify(al: &Aligned, rules: &RegionRules, limits: &Limits) -> Classific
         let at = |v: &[f64]| v.get(k).copied().unwrap_or(0.0);
         let a = k.saturating_sub(h);
         let b = (k + h).min(n.saturating_sub(1));
-        let span = al.time_s.get(b).copied().unwrap_or(0.0) - al.time_s.get(a).copied().unwrap_or(0.0);
+        let span =
+            al.grid.time_s.get(b).copied().unwrap_or(0.0) - al.grid.time_s.get(a).copied().unwrap_or(0.0);
         let slope = if span > 0.0 { (sv(b).abs() - sv(a).abs()) / span } else { 0.0 };
         let motion = if slope > rules.accel_rpm_s {
             Motion::Accelerating

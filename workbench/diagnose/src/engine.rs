@@ -248,6 +248,21 @@ pub fn diagnose(
     o: &Options,
     probe: Option<&dyn ProfileProbe>,
 ) -> Result<Diagnosis, String> {
+    // One pool of `o.threads` workers for every batch of simulations of this diagnosis;
+    // if none can be made, rayon's global pool does the same work.
+    match rayon::ThreadPoolBuilder::new().num_threads(o.threads.max(1)).build() {
+        Ok(pool) => pool.install(|| stages(twin, meas, o, probe)),
+        Err(_) => stages(twin, meas, o, probe),
+    }
+}
+
+/// The stages of [`diagnose`], in order.
+fn stages(
+    twin: &dyn Twin,
+    meas: &[Vec<f64>],
+    o: &Options,
+    probe: Option<&dyn ProfileProbe>,
+) -> Result<Diagnosis, String> {
     let p = prepare(twin, meas, o)?;
     let s = sensitivities(twin, &p, o)?;
     let (mut cands, lin) = score_effects(&p, &s, o, twin.channels());

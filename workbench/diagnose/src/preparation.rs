@@ -110,32 +110,24 @@ pub(super) fn noise_sigma(r: &[f64], h: usize) -> f64 {
 /// One simulation's outcome: `[channel][sample]` or why it failed.
 type RunResult = Result<Vec<Vec<f32>>, String>;
 
-/// One simulation per job, on `threads` workers; results in job order.
+/// One simulation per job on the current rayon pool (the diagnosis's, see
+/// [`super::engine::diagnose`]); results in job order.
 pub(super) fn run_all(twin: &dyn Twin, jobs: &[Effects], o: &Options) -> Vec<RunResult> {
     use rayon::prelude::*;
     let bar = match o.progress {
         true => Progress::new("simulations", jobs.len()),
         false => Progress::hidden(),
     };
-    let run = || {
-        let out = jobs
-            .par_iter()
-            .map(|fx| {
-                let r = twin.run(fx);
-                bar.tick("");
-                r
-            })
-            .collect();
-        bar.finish();
-        out
-    };
-    let threads = o.threads;
-    // A pool of the requested size (`--threads`); if one cannot be made, rayon's global
-    // pool does the same work.
-    match rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build() {
-        Ok(pool) => pool.install(run),
-        Err(_) => run(),
-    }
+    let out = jobs
+        .par_iter()
+        .map(|fx| {
+            let r = twin.run(fx);
+            bar.tick("");
+            r
+        })
+        .collect();
+    bar.finish();
+    out
 }
 
 /// Weighted squared error of `sim` against the measurement on the fit samples.

@@ -23,7 +23,7 @@ impl Twin for RecordedTwin {
         self.twin.inputs.len()
     }
     fn dt_s(&self) -> f64 {
-        self.twin.dt_s()
+        self.twin.grid.dt_s()
     }
     fn run(&self, fx: &Effects) -> Result<Vec<Vec<f32>>, String> {
         self.twin.simulate(*fx, &self.channels).map_err(|e| e.to_string())

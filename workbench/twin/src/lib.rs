@@ -19,7 +19,7 @@ use model_core::{
     SpeedTarget,
 };
 
-pub use measured::{Aligned, InputSource, MeasuredTwin, Paired, TwinError, FALLBACK_DT_US};
+pub use measured::{Aligned, InputSource, MeasuredTwin, Paired, RunGrid, TwinError, FALLBACK_DT_US};
 pub use sensors::SensorModel;
 use simrod_io::datadir::ModelData;
 

@@ -75,9 +75,10 @@ pub struct Paired {
     pub sim: Vec<f64>,
 }
 
-/// The twin run paired with the measurement.
+/// The comparison grid of a measured run and what lies on it besides the channels:
+/// shared by the prepared run ([`MeasuredTwin`]) and every alignment made from it.
 #[derive(Debug, Clone)]
-pub struct Aligned {
+pub struct RunGrid {
     /// [s] comparison grid (the file's time axis unless resampled).
     pub time_s: Vec<f64>,
     /// [µs] model step.
@@ -87,7 +88,29 @@ pub struct Aligned {
     /// How the step was chosen, for the report.
     pub step_note: String,
     /// [%] set points applied at each step: throttle, load L, load R.
-    pub inputs: [Vec<f64>; 3],
+    pub set_points: [Vec<f64>; 3],
+    /// Samples inside gaps the reader interpolated across (`--allow-gaps`): left out of
+    /// every figure.
+    pub gaps: Vec<bool>,
+}
+
+impl RunGrid {
+    /// [s] model step.
+    pub fn dt_s(&self) -> f64 {
+        f64::from(self.dt_us) * 1e-6
+    }
+
+    /// [s] from the first to the last sample.
+    pub fn duration_s(&self) -> f64 {
+        self.time_s.last().copied().unwrap_or(0.0) - self.time_s.first().copied().unwrap_or(0.0)
+    }
+}
+
+/// The twin run paired with the measurement.
+#[derive(Debug, Clone)]
+pub struct Aligned {
+    /// The grid the pairs are on.
+    pub grid: RunGrid,
     /// Comparable channels, measured ones in `MEASURED` order, then the derived ones.
     pub channels: Vec<Paired>,
     /// [A] the twin's commanded load phase currents L, R (a function of the set points
@@ -95,9 +118,6 @@ pub struct Aligned {
     pub phase_current: [Vec<f64>; 2],
     /// [rpm] the twin's SuT motor speed, for region rules when the file has none.
     pub sim_speed: Vec<f64>,
-    /// Samples inside gaps the reader interpolated across (`--allow-gaps`): left out of
-    /// every figure.
-    pub gaps: Vec<bool>,
 }
 
 /// A measured run prepared for the twin: grid, set points and measured channels, built
@@ -106,22 +126,12 @@ pub struct Aligned {
 pub struct MeasuredTwin {
     /// The twin (its `effects` are the default of [`MeasuredTwin::align`]).
     pub model: ModelOptions,
-    /// [s] comparison grid (the file's time axis unless resampled).
-    pub time_s: Vec<f64>,
-    /// [µs] model step.
-    pub dt_us: u32,
-    /// Whether the measurement was resampled onto a 1 ms grid.
-    pub resampled: bool,
-    /// How the step was chosen, for the report.
-    pub step_note: String,
-    /// [%] set points on the grid: throttle, load L, load R.
-    pub set_points: [Vec<f64>; 3],
+    /// The comparison grid, set points and gaps.
+    pub grid: RunGrid,
     /// The model's inputs, one per sample.
     pub inputs: Vec<Inputs>,
     /// The file's measured channels on the grid, in `MEASURED` order.
     pub measured: Vec<(Channel, Vec<f64>)>,
-    /// Samples inside interpolated gaps.
-    pub gaps: Vec<bool>,
 }
 
 impl MeasuredTwin {
@@ -164,31 +174,23 @@ impl MeasuredTwin {
         };
         Ok(Self {
             model: model.clone(),
-            time_s,
-            dt_us: grid.dt_us,
-            resampled: grid.resample_to.is_some(),
-            step_note: grid.note,
-            set_points,
+            grid: RunGrid {
+                time_s,
+                dt_us: grid.dt_us,
+                resampled: grid.resample_to.is_some(),
+                step_note: grid.note,
+                set_points,
+                gaps,
+            },
             inputs,
             measured,
-            gaps,
         })
-    }
-
-    /// [s] model step.
-    pub fn dt_s(&self) -> f64 {
-        f64::from(self.dt_us) * 1e-6
     }
 
     /// The twin's `channels` with `effects`, as the bench records them, one value per
     /// sample of the grid.
     pub fn simulate(&self, effects: Effects, channels: &[Channel]) -> Result<Vec<Vec<f32>>, TwinError> {
-        self.model.run(self.dt_us, effects, &self.inputs, channels)
-    }
-
-    /// The measured channel `ch` on the grid, if the file has it.
-    pub fn measured(&self, ch: Channel) -> Option<&[f64]> {
-        self.measured.iter().find(|(c, _)| *c == ch).map(|(_, v)| v.as_slice())
+        self.model.run(self.grid.dt_us, effects, &self.inputs, channels)
     }
 
     /// The twin with `effects` paired with every measured channel, plus the derived
@@ -221,26 +223,16 @@ impl MeasuredTwin {
         let derived = derive_powers(&channels);
         channels.extend(derived);
         Ok(Aligned {
-            time_s: self.time_s.clone(),
-            dt_us: self.dt_us,
-            resampled: self.resampled,
-            step_note: self.step_note.clone(),
-            inputs: self.set_points.clone(),
+            grid: self.grid.clone(),
             channels,
             phase_current: [widen(phase_l), widen(phase_r)],
             sim_speed: widen(speed),
-            gaps: self.gaps.clone(),
         })
     }
 }
 
-/// Run the twin on `meas`'s inputs and pair the outputs with the measured channels.
-pub fn align(meas: &Measurement, model: &ModelOptions, source: &InputSource) -> Result<Aligned, TwinError> {
-    MeasuredTwin::new(meas, model, source)?.align(model.effects)
-}
-
 /// How the comparison grid relates to the file's.
-struct Grid {
+struct GridChoice {
     dt_us: u32,
     /// `None`: use the file's samples as they are.
     resample_to: Option<Vec<f64>>,
@@ -248,7 +240,7 @@ struct Grid {
 }
 
 /// The file's set-point channels on the grid; all three are needed.
-fn recorded_set_points(meas: &Measurement, grid: &Grid) -> Result<[Vec<f64>; 3], TwinError> {
+fn recorded_set_points(meas: &Measurement, grid: &GridChoice) -> Result<[Vec<f64>; 3], TwinError> {
     let mut got = Vec::with_capacity(3);
     let mut missing = Vec::new();
     for name in [SETPOINT_THROTTLE, SETPOINT_LOAD_L, SETPOINT_LOAD_R] {
@@ -263,7 +255,7 @@ fn recorded_set_points(meas: &Measurement, grid: &Grid) -> Result<[Vec<f64>; 3],
     got.try_into().map_err(|_| TwinError::NoSetPoints(vec![SETPOINT_THROTTLE.into()]))
 }
 
-fn choose_grid(time: &[f64]) -> Result<Grid, TwinError> {
+fn choose_grid(time: &[f64]) -> Result<GridChoice, TwinError> {
     let n = time.len();
     let (Some(&t0), Some(&t1)) = (time.first(), time.last()) else {
         return Err(TwinError::TooShort(n));
@@ -285,7 +277,7 @@ fn choose_grid(time: &[f64]) -> Result<Grid, TwinError> {
     let whole = (us - rounded).abs() * (n - 1) as f64 <= 0.01 * rounded;
     let in_range = rounded >= f64::from(DT_US_RANGE.0) && rounded <= f64::from(DT_US_RANGE.1);
     if uniform && whole && in_range {
-        return Ok(Grid {
+        return Ok(GridChoice {
             dt_us: rounded as u32,
             resample_to: None,
             note: format!("model step = sample interval = {rounded} µs"),
@@ -301,7 +293,7 @@ fn choose_grid(time: &[f64]) -> Result<Grid, TwinError> {
     } else {
         format!("the sample interval {rounded} µs is outside {}..{} µs", DT_US_RANGE.0, DT_US_RANGE.1)
     };
-    Ok(Grid {
+    Ok(GridChoice {
         dt_us: FALLBACK_DT_US,
         resample_to: Some(grid),
         note: format!("{why}: measurement resampled (linear) to 1 ms, model step 1 ms"),
@@ -309,7 +301,7 @@ fn choose_grid(time: &[f64]) -> Result<Grid, TwinError> {
 }
 
 /// A signal of the file on the comparison grid; a length mismatch is a user-data error.
-fn on_grid(meas: &Measurement, name: &str, grid: &Grid) -> Result<Option<Vec<f64>>, TwinError> {
+fn on_grid(meas: &Measurement, name: &str, grid: &GridChoice) -> Result<Option<Vec<f64>>, TwinError> {
     let Some(sig) = meas.signal(name) else {
         return Ok(None);
     };
