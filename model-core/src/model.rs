@@ -157,6 +157,8 @@ struct State {
     backlash: BacklashState,
     /// Connector temperature (`connector_resistance_drift`).
     thermal: ThermalState,
+    /// [V] busbar voltage of the last step (`supply_resistance`; 0 before the first).
+    v_b: f32,
     t_us: u64,
     /// Search hints for the table lookups (see `table::locate_hinted`).
     hints: Hints,
@@ -266,6 +268,7 @@ impl<'a> Model<'a> {
             delay: DelayState::default(),
             backlash: backlash.initial(),
             thermal: ThermalState::default(),
+            v_b: 0.0,
             t_us: 0,
             hints: Hints::default(),
         };
@@ -470,12 +473,8 @@ impl<'a> Model<'a> {
         };
         let mut v_b = v_s;
         if fx.supply_resistance > 0.0 {
-            // The busbars sag with the total current: a fixed number of fixed-point passes
-            // (same bits everywhere), then all currents at the converged voltage.
-            for _ in 0..6 {
-                let (sol, i_ld) = draw(v_b);
-                v_b = v_s - fx.supply_resistance * (sol.0 + i_ld[0] + i_ld[1]);
-            }
+            v_b = busbar_voltage(v_s, fx.supply_resistance, s.v_b, p_sut, &draw);
+            s.v_b = v_b;
         }
         let (sol, i_ld) = draw(v_b);
         let (i_dc, v_dc, _) = sol;
@@ -574,6 +573,50 @@ impl<'a> Model<'a> {
         o.set(C::LoadSpeedR, xr[W_L] * RPM_PER_RAD_S * p.load_gear_ratio);
         o
     }
+}
+
+/// Busbar voltage with the DPU's source resistance `r_s`: the root of
+/// `g(v) = v - v_s + r_s I(v)`, `I` the total current drawn at `v` (`draw`). Fixed
+/// passes `v <- v_s - r_s I(v)` do not converge where the SuT draw nears the connector's
+/// cap, `r_s |dI/dv| > 1` there (found by the physics plant's conformance check,
+/// `workbench/plant/tests/conformance.rs`). Newton with the analytic slope instead,
+/// from the last step's voltage (the stable, high-voltage root moves little per step),
+/// a fixed number of iterations (same bits everywhere); a fixed-point pass where the
+/// slope is not positive.
+#[inline]
+fn busbar_voltage(
+    v_s: f32,
+    r_s: f32,
+    v_last: f32,
+    p_sut: f32,
+    draw: &dyn Fn(f32) -> ((f32, f32, f32), [f32; 2]),
+) -> f32 {
+    let mut v = if v_last > 0.0 { v_last } else { v_s };
+    for _ in 0..8 {
+        let ((i_c, v_dc, p_eff), i_ld) = draw(v);
+        #[allow(clippy::neg_cmp_op_on_partial_ord)]
+        if !(v > 0.0) {
+            return v_s;
+        }
+        let i = i_c + i_ld[0] + i_ld[1];
+        // Connector: capped, the current is proportional to v; else from
+        // r i^2 - v i + p = 0, di/dv = i / (2 r i - v) = -i / (v_dc - r i).
+        let di_c = if p_eff != p_sut {
+            i_c / v
+        } else {
+            let den = v_dc - (v - v_dc);
+            if den != 0.0 {
+                -i_c / den
+            } else {
+                0.0
+            }
+        };
+        let di = di_c - (i_ld[0] + i_ld[1]) / v;
+        let g = v - v_s + r_s * i;
+        let slope = 1.0 + r_s * di;
+        v = if slope > 0.0 { v - g / slope } else { v_s - r_s * i };
+    }
+    v
 }
 
 /// A 2-D map at (throttle, load) set points: on the located grid cells when all maps

@@ -33,3 +33,5 @@
 pub mod chain;
 pub mod encoder;
 pub mod noise;
+pub mod daq;
+pub mod perturb;

@@ -1,0 +1,1000 @@
+//! Perturbed model data for the virtual bench (`simrod bench --perturb-maps SEED`).
+//!
+//! A real bench's physics is never exactly the identified data. [`perturb`] returns a
+//! copy of a [`ModelData`] whose maps and uncertain scalar parameters are smooth random
+//! perturbations of the originals, each within the uncertainty the thesis reports
+//! ([`Uncertainty::thesis`], every number with its origin or marked ASSUMED). The bench
+//! runs its plant on the perturbed copy while the twin keeps the identified data, so the
+//! diagnosis tools are tested against "base data that is not the identified data".
+//! [`summary`] says what was changed, for the truth file of a generated case.
+//!
+//! How a perturbation is built:
+//! - grids are never touched, only values; every value stays finite, so the model-core
+//!   table constructors accept the result ([`ModelData::maps`] is `Ok`);
+//! - the shape is a random Fourier series on the normalised axis `u ∈ [0, 1]`:
+//!   `f(u) = Σ_k √w_k (a_k cos πku + b_k sin πku)`, `a_k, b_k ~ N(0, 1)`, `k = 0..3`,
+//!   weights [`SPECTRUM`]. Its variance is 1 at every `u` (stationary) and its
+//!   correlation `Σ w_k cos(πkΔu)` falls to 0.5 only at `Δu ≈ 0.3`: a perturbation
+//!   looks like a mis-identified curve (offset, tilt, a bow), not like noise. 2-D maps
+//!   use the tensor product of two such series (covariance `w_k w_l`), variance 1;
+//! - each map and each parameter group draws from its own [`Rng`] stream, named by a
+//!   hash of its name, so adding an item later leaves the others' draws unchanged and the
+//!   same `(data, seed, unc)` always gives the same result;
+//! - magnitudes: the expected mean square of the change over the map's grid points is
+//!   the target sigma squared (absolute for friction, relative to the value for the
+//!   other maps); each draw's RMS scatters around it (it is a random draw, not a
+//!   normalised one).
+//!
+//! Constraints kept (only where the base data has them):
+//! - friction: odd in speed (`f(−ω) = −f(ω)`, exactly, when the base map is), zero at
+//!   zero speed (a taper `1 − exp(−(ω/ω_t)²)` takes the change to 0 there) and no sign
+//!   change (friction opposes motion);
+//! - speed maps and the throttle input map: non-decreasing, the zero region (deadband,
+//!   0 % → 0 rpm) stays 0 and the saturation plateau (2100 / 500 rpm, 100 %) stays at
+//!   its value; only the values strictly between are scaled;
+//! - scalar parameters: log-normal factors (`v · exp(σ g)`, median = identified value),
+//!   so they stay positive.
+
+use simrod_io::datadir::{Map1, Map2, ModelData, ParamLine, FILES_1D, FILES_2D};
+use simrod_numerics::stats::Rng;
+
+/// Weights `w_k` of the cosine/sine pairs `k = 0, 1, 2, 3` of a perturbation shape
+/// (sum 1): an offset, a tilt, a bow and a little wiggle across the axis. ASSUMED: a
+/// map identified from plateau means errs by its fit's low-order shape, which is what a
+/// correlation length of ~0.3 of the axis reproduces.
+pub const SPECTRUM: [f64; 4] = [1.0 / 2.75, 1.0 / 2.75, 0.5 / 2.75, 0.25 / 2.75];
+
+/// Width [%] of the blend between the motoring and regenerating uncertainty of the
+/// load maps around load set point 0 (`tanh(sp / width)`). ASSUMED: the maps' first
+/// rows either side of 0 are at ±20 %, where the blend is 96 % complete.
+pub const REGION_WIDTH_PCT: f64 = 10.0;
+
+/// One standard deviation and where it comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sigma {
+    /// The standard deviation, in the unit its field names.
+    pub value: f64,
+    /// Thesis section/table, or `ASSUMED: reason`.
+    pub origin: &'static str,
+}
+
+impl Sigma {
+    const fn new(value: f64, origin: &'static str) -> Self {
+        Self { value, origin }
+    }
+}
+
+/// A log-normal uncertainty of one or more parameter keys that share one
+/// identification (they get the same factor).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamSigma {
+    /// `parameters.toml` keys; all get the same factor.
+    pub keys: &'static [&'static str],
+    /// The keys' unit (for the summary).
+    pub unit: &'static str,
+    /// Standard deviation of `ln(true / identified)`; ≈ the relative sigma.
+    pub sigma_ln: f64,
+    /// Thesis section/table, or `ASSUMED: reason`.
+    pub origin: &'static str,
+}
+
+/// How far the bench's true data may be from the identified data: one standard
+/// deviation per map/parameter, each with its origin (thesis section/table) or marked
+/// ASSUMED with the reason.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Uncertainty {
+    /// Axle friction maps L, R: absolute [N m] (RMS over the map's grid points).
+    pub friction_nm: [Sigma; 2],
+    /// Friction taper width [rpm]: the change is scaled by `1 − exp(−(ω/ω_t)²)` so a
+    /// map that is 0 at standstill stays 0 there.
+    pub friction_taper_rpm: Sigma,
+    /// Load torque maps, relative [-], where the load motors are motoring (load set
+    /// point < 0). Load current maps get the same relative field (same side).
+    pub load_torque_motoring_rel: Sigma,
+    /// Load torque maps, relative [-], where the load motors regenerate (set point > 0).
+    pub load_torque_regen_rel: Sigma,
+    /// Load power maps: relative [-], independent of and on top of the torque field
+    /// they share (the electrical efficiency of the load drives).
+    pub load_power_rel: Sigma,
+    /// SuT inverter power map, relative [-], where the SuT draws power (P ≥ 0).
+    pub sut_power_rel: Sigma,
+    /// SuT inverter power map, relative [-], where the SuT regenerates (P < 0).
+    pub sut_power_regen_rel: Sigma,
+    /// Speed maps fwd/rev, relative [-] (values strictly between 0 and the limit).
+    pub speed_map_rel: Sigma,
+    /// Throttle input map, relative [-] (values strictly between deadband and full).
+    pub throttle_map_rel: Sigma,
+    /// Scalar parameters (log-normal); keys not listed are not perturbed.
+    pub params: Vec<ParamSigma>,
+}
+
+/// The Curtis identified time rates (table 5.17) that share one value per direction.
+const IDENT_RATE_GROUPS: [&[&str]; 8] = [
+    &["ident.accel_hs_fwd_s", "ident.accel_ls_fwd_s"],
+    &["ident.accel_hs_rev_s", "ident.accel_ls_rev_s"],
+    &["ident.low_accel_fwd_s"],
+    &["ident.low_accel_rev_s"],
+    &["ident.neutral_decel_hs_fwd_s", "ident.neutral_decel_ls_fwd_s"],
+    &["ident.neutral_decel_hs_rev_s", "ident.neutral_decel_ls_rev_s"],
+    &["ident.partial_decel_fwd_s"],
+    &["ident.partial_decel_rev_s"],
+];
+
+const IDENT_RATE_ORIGIN: &str = "ASSUMED: table 5.17 gives the identified rates without a spread; \
+     they are ramp-slope fits, and identified vs programmed differ by 3-5 % (3.98 vs 3.8 s), \
+     so 3 % per identification";
+
+impl Uncertainty {
+    /// The thesis' identification uncertainty; every number's origin (thesis
+    /// section/table, or ASSUMED with the reason) is in its `origin` field.
+    pub fn thesis() -> Self {
+        let mut params = vec![
+            ParamSigma {
+                keys: &["coupling_stiffness_identified"],
+                unit: "N m/rad",
+                sigma_ln: 0.26,
+                origin: "table 5.10: 4369 N m/rad, run-to-run spread 3632 N m/rad over the ten \
+                         significant runs (5.4, \"the computed variance among those is high\"): \
+                         standard error 3632/sqrt(10) = 1149 N m/rad = 26 %",
+            },
+            ParamSigma {
+                keys: &["coupling_stiffness_datasheet"],
+                unit: "N m/rad",
+                sigma_ln: 0.10,
+                origin: "ASSUMED: catalogue value (table 5.10); the thesis cannot tell how it was \
+                         computed (5.4); 10 % is a typical elastomer-coupling stiffness tolerance",
+            },
+            ParamSigma {
+                keys: &["sut_inertia"],
+                unit: "kg m^2",
+                sigma_ln: 0.10,
+                origin: "ASSUMED: table 5.8 gives no spread; 5.3.2 says the campaign \"gives just \
+                         an idea\" (few points, low inertial torque, outliers discarded): 10 %",
+            },
+            ParamSigma {
+                keys: &["load_inertia_l"],
+                unit: "kg m^2",
+                sigma_ln: 0.10,
+                origin: "ASSUMED: table 5.8 gives no spread; 5.3.2 (few points, outliers): 10 %",
+            },
+            ParamSigma {
+                keys: &["load_inertia_r"],
+                unit: "kg m^2",
+                sigma_ln: 0.10,
+                origin: "ASSUMED: table 5.8 gives no spread; 5.3.2 (few points, outliers): 10 %",
+            },
+            ParamSigma {
+                keys: &["connector_resistance"],
+                unit: "ohm",
+                sigma_ln: 0.23,
+                origin: "table 5.14: sections 2 and 3 give 0.0166 and 0.0255 ohm, mean 0.0196; \
+                         the standard error of a two-value mean is half their difference, \
+                         0.0045 ohm = 23 %",
+            },
+            ParamSigma {
+                keys: &["coupling_damping"],
+                unit: "N m s/rad",
+                sigma_ln: 0.30,
+                origin: "ASSUMED: the value itself is assumed (docs/MODEL.md, elastomer zeta ~0.064); \
+                         elastomer relative damping varies ~30 % with temperature and amplitude",
+            },
+            ParamSigma {
+                keys: &["throttle_volts_per_pct"],
+                unit: "V/%",
+                sigma_ln: 0.01,
+                origin: "ASSUMED: eq. 3.1 is nominal; a PLC analog output's gain error is ~1 %",
+            },
+        ];
+        for keys in IDENT_RATE_GROUPS {
+            params.push(ParamSigma { keys, unit: "s", sigma_ln: 0.03, origin: IDENT_RATE_ORIGIN });
+        }
+        Self {
+            friction_nm: [
+                Sigma::new(1.7583, "table 5.7: friction fit RMSE, axle L section 2, 1.7583 N m"),
+                Sigma::new(2.2156, "table 5.7: friction fit RMSE, axle R section 2, 2.2156 N m"),
+            ],
+            friction_taper_rpm: Sigma::new(
+                10.0,
+                "ASSUMED: half the +-20 rpm cubic region of the friction map (5.3.1); the map is \
+                 0 at standstill and must stay so",
+            ),
+            load_torque_motoring_rel: Sigma::new(
+                0.03,
+                "ASSUMED: the thesis gives no error for the 2-D maps (5.2, fig. 5.14/5.15); \
+                 motoring plateaus are well covered by the campaign: 3 %",
+            ),
+            load_torque_regen_rel: Sigma::new(
+                0.09,
+                "ASSUMED: regenerating operation was barely identified (6.1.1: \"the lack of \
+                 identifications for regenerating operations\"; 7: \"not really analysed\"): \
+                 three times the motoring 3 %",
+            ),
+            load_power_rel: Sigma::new(
+                0.02,
+                "ASSUMED: electrical maps are \"quite high\" in accuracy (6.1); 2 % for the load \
+                 drives' efficiency on top of the torque field",
+            ),
+            sut_power_rel: Sigma::new(
+                0.03,
+                "ASSUMED: SuT power map (5.5, fig. 5.42/5.43) validated with \"quite high\" \
+                 accuracy (6.1): 3 %",
+            ),
+            sut_power_regen_rel: Sigma::new(
+                0.08,
+                "ASSUMED: regenerative electrics \"not really analysed\" (7): 8 % where the SuT \
+                 inverter power is negative",
+            ),
+            speed_map_rel: Sigma::new(
+                0.02,
+                "ASSUMED: fig. 5.7 gives no error; 6.1 names the speed map as a mismatch source \
+                 (point \"2\"): 2 %, limits 2100/500 rpm (table 5.3) kept",
+            ),
+            throttle_map_rel: Sigma::new(
+                0.01,
+                "ASSUMED: programmed Curtis input map (3.1.1); 1 % between deadband and full. The \
+                 built-in map has no such points (0/0/100/100): only a map with interior points \
+                 changes; the chain's gain is perturbed via throttle_volts_per_pct",
+            ),
+            params,
+        }
+    }
+
+    /// No perturbation at all (every sigma 0): `perturb` then returns the data unchanged
+    /// apart from the comments.
+    pub fn none() -> Self {
+        Self::thesis().scaled(0.0)
+    }
+
+    /// Every sigma times `f` (e.g. 2 for a bench further from the twin).
+    pub fn scaled(mut self, f: f64) -> Self {
+        let [fl, fr] = &mut self.friction_nm;
+        for s in [
+            fl,
+            fr,
+            &mut self.load_torque_motoring_rel,
+            &mut self.load_torque_regen_rel,
+            &mut self.load_power_rel,
+            &mut self.sut_power_rel,
+            &mut self.sut_power_regen_rel,
+            &mut self.speed_map_rel,
+            &mut self.throttle_map_rel,
+        ] {
+            s.value *= f;
+        }
+        for p in &mut self.params {
+            p.sigma_ln *= f;
+        }
+        self
+    }
+}
+
+/// FNV-1a of a name: the RNG stream of one map or parameter group.
+fn stream_of(name: &str) -> u64 {
+    name.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
+}
+
+fn rng_for(seed: u64, name: &str) -> Rng {
+    Rng::new(seed, stream_of(name))
+}
+
+/// A random smooth 1-D shape on the normalised axis, variance 1 everywhere.
+#[derive(Debug, Clone)]
+struct Field1 {
+    a: [f64; 4],
+    b: [f64; 4],
+}
+
+impl Field1 {
+    fn draw(rng: &mut Rng) -> Self {
+        let mut a = [0.0; 4];
+        let mut b = [0.0; 4];
+        for k in 0..4 {
+            let s = SPECTRUM[k].sqrt();
+            a[k] = s * rng.gauss();
+            b[k] = s * rng.gauss();
+        }
+        Self { a, b }
+    }
+
+    fn at(&self, u: f64) -> f64 {
+        (0..4)
+            .map(|k| {
+                let p = std::f64::consts::PI * k as f64 * u;
+                self.a[k] * p.cos() + self.b[k] * p.sin()
+            })
+            .sum()
+    }
+}
+
+/// A random smooth 2-D shape (tensor product of two [`Field1`] spectra), variance 1.
+#[derive(Debug, Clone)]
+struct Field2 {
+    c: [[[f64; 4]; 4]; 4],
+}
+
+impl Field2 {
+    fn draw(rng: &mut Rng) -> Self {
+        let mut c = [[[0.0; 4]; 4]; 4];
+        for (k, ck) in c.iter_mut().enumerate() {
+            for (l, ckl) in ck.iter_mut().enumerate() {
+                let s = (SPECTRUM[k] * SPECTRUM[l]).sqrt();
+                for v in ckl.iter_mut() {
+                    *v = s * rng.gauss();
+                }
+            }
+        }
+        Self { c }
+    }
+
+    fn at(&self, u: f64, v: f64) -> f64 {
+        let pi = std::f64::consts::PI;
+        let mut s = 0.0;
+        for k in 0..4 {
+            let (cu, su) = ((pi * k as f64 * u).cos(), (pi * k as f64 * u).sin());
+            for l in 0..4 {
+                let (cv, sv) = ((pi * l as f64 * v).cos(), (pi * l as f64 * v).sin());
+                let c = &self.c[k][l];
+                s += c[0] * cu * cv + c[1] * cu * sv + c[2] * su * cv + c[3] * su * sv;
+            }
+        }
+        s
+    }
+}
+
+/// Normaliser of an axis onto [0, 1] (a one-point axis maps to 0).
+fn unit_axis(x: &[f32]) -> impl Fn(f64) -> f64 {
+    let lo = x.first().map_or(0.0, |v| f64::from(*v));
+    let hi = x.last().map_or(0.0, |v| f64::from(*v));
+    let span = hi - lo;
+    move |v| if span > 0.0 { (v - lo) / span } else { 0.0 }
+}
+
+/// Whether a 1-D map is odd: symmetric grid and `y(−x) = −y(x)`, exactly.
+fn is_odd(m: &Map1) -> bool {
+    let n = m.x.len();
+    n > 0 && (0..n).all(|i| m.x[i] == -m.x[n - 1 - i] && m.y[i] == -m.y[n - 1 - i])
+}
+
+/// Whether a 1-D map is 0 at a grid point at 0.
+fn zero_at_zero(m: &Map1) -> bool {
+    m.x.iter().zip(&m.y).any(|(x, y)| *x == 0.0 && *y == 0.0)
+}
+
+fn non_decreasing(v: &[f32]) -> bool {
+    v.windows(2).all(|w| w[1] >= w[0])
+}
+
+/// Friction: absolute smooth change, odd if the base is, 0 at 0 if the base is, no sign
+/// change.
+fn perturb_friction(m: &Map1, sigma: f64, taper_rpm: f64, rng: &mut Rng) -> Map1 {
+    let f = Field1::draw(rng);
+    let odd = is_odd(m);
+    let zero = zero_at_zero(m);
+    let xmax = m.x.iter().fold(0.0_f64, |a, v| a.max(f64::from(v.abs())));
+    let unit = unit_axis(&m.x);
+    let raw: Vec<(f64, f64)> =
+        m.x.iter()
+            .map(|&x| {
+                let x = f64::from(x);
+                let t = if zero && taper_rpm > 0.0 { 1.0 - (-(x / taper_rpm).powi(2)).exp() } else { 1.0 };
+                let shape = if odd {
+                    let u = if xmax > 0.0 { x.abs() / xmax } else { 0.0 };
+                    x.signum() * f.at(u) * if x == 0.0 { 0.0 } else { 1.0 }
+                } else {
+                    f.at(unit(x))
+                };
+                (t, t * shape)
+            })
+            .collect();
+    // Expected mean square of `t · shape` over the grid is mean(t²): scale to sigma.
+    let ms = raw.iter().map(|(t, _)| t * t).sum::<f64>() / raw.len().max(1) as f64;
+    let k = if ms > 0.0 { sigma / ms.sqrt() } else { 0.0 };
+    let mut out = m.clone();
+    for ((y, &x), (_, d)) in out.y.iter_mut().zip(&m.x).zip(&raw) {
+        let base = f64::from(*y);
+        let mut v = base + k * d;
+        // Friction opposes motion: keep the base's sign.
+        if x > 0.0 && base >= 0.0 {
+            v = v.max(0.0);
+        } else if x < 0.0 && base <= 0.0 {
+            v = v.min(0.0);
+        }
+        *y = v as f32;
+    }
+    out
+}
+
+/// Monotone maps (speed, throttle input): relative change of the values strictly between
+/// the lowest (zero / deadband) and highest (limit / full) value; kept non-decreasing.
+fn perturb_monotone(m: &Map1, sigma: f64, rng: &mut Rng) -> Map1 {
+    let f = Field1::draw(rng);
+    let unit = unit_axis(&m.x);
+    let lo = m.y.iter().copied().fold(f32::INFINITY, f32::min);
+    let hi = m.y.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    let mono = non_decreasing(&m.y);
+    let mut out = m.clone();
+    let mut prev = f32::NEG_INFINITY;
+    for (y, &x) in out.y.iter_mut().zip(&m.x) {
+        if *y > lo && *y < hi {
+            let v = f64::from(*y) * (1.0 + sigma * f.at(unit(f64::from(x))));
+            *y = (v as f32).clamp(lo, hi);
+        }
+        if mono {
+            *y = y.max(prev);
+            prev = *y;
+        }
+    }
+    out
+}
+
+/// Blend of the motoring and regenerating sigma at load set point `sp` [%].
+fn region_sigma(sp: f64, motoring: f64, regen: f64) -> f64 {
+    motoring + (regen - motoring) * 0.5 * (1.0 + (sp / REGION_WIDTH_PCT).tanh())
+}
+
+/// A map's values with relative change `rel(x, y)` at each grid point.
+fn apply_rel(m: &Map2, rel: impl Fn(f64, f64, f64) -> f64) -> Map2 {
+    let mut out = m.clone();
+    let nx = m.x.len();
+    for (i, z) in out.z.iter_mut().enumerate() {
+        let (x, y) = (f64::from(m.x[i % nx]), f64::from(m.y[i / nx]));
+        let base = f64::from(*z);
+        *z = (base * (1.0 + rel(x, y, base))) as f32;
+    }
+    out
+}
+
+/// A copy of `data` with every map and the uncertain scalar parameters perturbed: same
+/// grids, smooth (correlation length ~0.3 of each axis, so a perturbation looks like a
+/// mis-identified curve, not noise), seeded. The same `(data, seed, unc)` always gives
+/// the same result.
+pub fn perturb(data: &ModelData, seed: u64, unc: &Uncertainty) -> ModelData {
+    let mut out = data.clone();
+    let note = format!(
+        "# PERTURBED (simrod-vbench perturb, seed {seed}): a virtual bench's true data, not the identified data"
+    );
+
+    for (i, side) in ["L", "R"].iter().enumerate() {
+        let mut rng = rng_for(seed, &format!("axle_friction_{side}"));
+        out.friction[i] = perturb_friction(
+            &data.friction[i],
+            unc.friction_nm[i].value,
+            unc.friction_taper_rpm.value,
+            &mut rng,
+        );
+    }
+    out.speed_fwd =
+        perturb_monotone(&data.speed_fwd, unc.speed_map_rel.value, &mut rng_for(seed, "speed_map_fwd"));
+    out.speed_rev =
+        perturb_monotone(&data.speed_rev, unc.speed_map_rel.value, &mut rng_for(seed, "speed_map_rev"));
+    out.throttle_input = perturb_monotone(
+        &data.throttle_input,
+        unc.throttle_map_rel.value,
+        &mut rng_for(seed, "throttle_input_map"),
+    );
+
+    for (i, side) in ["L", "R"].iter().enumerate() {
+        // One relative field per side, in set-point coordinates of the torque map; the
+        // current (T = k_t I) and power maps share it.
+        let tq = &data.load_torque[i];
+        let (ux, uy) = (unit_axis(&tq.x), unit_axis(&tq.y));
+        let ft = Field2::draw(&mut rng_for(seed, &format!("load_torque_{side}")));
+        let (mo, re) = (unc.load_torque_motoring_rel.value, unc.load_torque_regen_rel.value);
+        let rel_t = |x: f64, y: f64| region_sigma(y, mo, re) * ft.at(ux(x), uy(y));
+        out.load_torque[i] = apply_rel(tq, |x, y, _| rel_t(x, y));
+        out.load_current[i] = apply_rel(&data.load_current[i], |x, y, _| rel_t(x, y));
+        let fp = Field2::draw(&mut rng_for(seed, &format!("load_power_{side}")));
+        let sp = unc.load_power_rel.value;
+        out.load_power[i] = apply_rel(&data.load_power[i], |x, y, _| rel_t(x, y) + sp * fp.at(ux(x), uy(y)));
+    }
+    {
+        let m = &data.sut_power;
+        let (ux, uy) = (unit_axis(&m.x), unit_axis(&m.y));
+        let f = Field2::draw(&mut rng_for(seed, "sut_inverter_power"));
+        let (sd, sr) = (unc.sut_power_rel.value, unc.sut_power_regen_rel.value);
+        out.sut_power = apply_rel(m, |x, y, z| if z >= 0.0 { sd } else { sr } * f.at(ux(x), uy(y)));
+    }
+
+    for m in [&mut out.throttle_input, &mut out.speed_fwd, &mut out.speed_rev]
+        .into_iter()
+        .chain(out.friction.iter_mut())
+    {
+        m.comments.push(note.clone());
+    }
+    for m in out
+        .load_torque
+        .iter_mut()
+        .chain(out.load_current.iter_mut())
+        .chain(out.load_power.iter_mut())
+        .chain(std::iter::once(&mut out.sut_power))
+    {
+        m.comments.push(note.clone());
+    }
+
+    for p in &unc.params {
+        let Some(first) = p.keys.first() else { continue };
+        let mut rng = rng_for(seed, &format!("param:{first}"));
+        let factor = (p.sigma_ln * rng.gauss()).exp();
+        for line in &mut out.params {
+            if let ParamLine::Entry { key, value, comment } = line {
+                if p.keys.contains(&key.as_str()) {
+                    let v = (f64::from(*value) * factor) as f32;
+                    if v.is_finite() {
+                        *value = v;
+                        if !comment.contains("PERTURBED") {
+                            comment.push_str(" PERTURBED");
+                        }
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// One changed map or parameter: RMS and max |change| in its unit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PerturbItem {
+    /// Map file name without `.csv`, or the parameter key.
+    pub name: String,
+    pub unit: &'static str,
+    /// RMS of the change over the map's grid points (a parameter: |change|).
+    pub rms: f64,
+    /// Largest |change|.
+    pub max_abs: f64,
+}
+
+/// What was changed, for the truth file of a generated case.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PerturbSummary {
+    pub items: Vec<PerturbItem>,
+}
+
+impl PerturbSummary {
+    /// The item called `name`.
+    pub fn item(&self, name: &str) -> Option<&PerturbItem> {
+        self.items.iter().find(|i| i.name == name)
+    }
+}
+
+/// Units of the maps, in `FILES_1D` then `FILES_2D` order.
+const MAP_UNITS: [&str; 12] = ["%", "rpm", "rpm", "N m", "N m", "N m", "N m", "A", "A", "W", "W", "W"];
+
+/// The unit of a parameter key, from the thesis list (others: "").
+fn param_unit(key: &str) -> &'static str {
+    Uncertainty::thesis().params.iter().find(|p| p.keys.contains(&key)).map_or("", |p| p.unit)
+}
+
+fn change_stats(a: &[f32], b: &[f32]) -> (f64, f64) {
+    let d: Vec<f64> = a.iter().zip(b).map(|(x, y)| f64::from(*y) - f64::from(*x)).collect();
+    let rms = if d.is_empty() { 0.0 } else { (d.iter().map(|v| v * v).sum::<f64>() / d.len() as f64).sqrt() };
+    (rms, d.iter().fold(0.0, |m, v| m.max(v.abs())))
+}
+
+/// What was changed: every map (by file name without `.csv`, even if unchanged) and
+/// every parameter whose value differs, with the RMS and max |change| in its unit.
+pub fn summary(base: &ModelData, perturbed: &ModelData) -> PerturbSummary {
+    let mut items = Vec::new();
+    let names = FILES_1D.iter().chain(FILES_2D.iter()).map(|f| f.trim_end_matches(".csv"));
+    let values: Vec<(&[f32], &[f32])> = base
+        .maps_1d()
+        .iter()
+        .zip(perturbed.maps_1d().iter())
+        .map(|((_, a), (_, b))| (a.y.as_slice(), b.y.as_slice()))
+        .chain(
+            base.maps_2d()
+                .iter()
+                .zip(perturbed.maps_2d().iter())
+                .map(|((_, a), (_, b))| (a.z.as_slice(), b.z.as_slice())),
+        )
+        .collect();
+    for ((name, (a, b)), unit) in names.zip(values).zip(MAP_UNITS) {
+        let (rms, max_abs) = change_stats(a, b);
+        items.push(PerturbItem { name: name.to_string(), unit, rms, max_abs });
+    }
+    for line in &base.params {
+        if let ParamLine::Entry { key, value, .. } = line {
+            if let Some(v) = perturbed.param(key) {
+                if v != *value {
+                    let d = (f64::from(v) - f64::from(*value)).abs();
+                    items.push(PerturbItem { name: key.clone(), unit: param_unit(key), rms: d, max_abs: d });
+                }
+            }
+        }
+    }
+    PerturbSummary { items }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn base() -> ModelData {
+        ModelData::builtin().expect("built-in data")
+    }
+
+    fn rms(v: &[f64]) -> f64 {
+        (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
+    }
+
+    fn diff1(a: &Map1, b: &Map1) -> Vec<f64> {
+        a.y.iter().zip(&b.y).map(|(x, y)| f64::from(*y) - f64::from(*x)).collect()
+    }
+
+    #[test]
+    fn reproducible_and_seed_dependent() {
+        let d = base();
+        let u = Uncertainty::thesis();
+        for seed in [0, 1, 42, u64::MAX] {
+            let a = perturb(&d, seed, &u);
+            let b = perturb(&d, seed, &u);
+            assert_eq!(a, b, "seed {seed}");
+            assert_ne!(a, d, "seed {seed} changes something");
+        }
+        let (a, b) = (perturb(&d, 1, &u), perturb(&d, 2, &u));
+        for (x, y) in a.maps_2d().iter().zip(b.maps_2d().iter()) {
+            assert_ne!(x.1.z, y.1.z, "{}", x.0);
+        }
+        for (x, y) in a.maps_1d().iter().zip(b.maps_1d().iter()).skip(1) {
+            assert_ne!(x.1.y, y.1.y, "{}", x.0);
+        }
+        assert_ne!(a.param("coupling_stiffness_identified"), b.param("coupling_stiffness_identified"));
+    }
+
+    #[test]
+    fn valid_tables_finite_and_grids_untouched() {
+        let d = base();
+        let u = Uncertainty::thesis().scaled(3.0);
+        for seed in 0..30 {
+            let p = perturb(&d, seed, &u);
+            assert!(p.maps().is_ok(), "seed {seed}");
+            for ((_, a), (_, b)) in d.maps_1d().iter().zip(p.maps_1d().iter()) {
+                assert_eq!(a.x, b.x);
+                assert!(b.y.iter().all(|v| v.is_finite()));
+            }
+            for ((_, a), (_, b)) in d.maps_2d().iter().zip(p.maps_2d().iter()) {
+                assert_eq!((&a.x, &a.y), (&b.x, &b.y));
+                assert!(b.z.iter().all(|v| v.is_finite()));
+            }
+            for l in &p.params {
+                if let ParamLine::Entry { key, value, .. } = l {
+                    assert!(
+                        value.is_finite() && (*value > 0.0) == (d.param(key).unwrap_or(0.0) > 0.0),
+                        "{key}"
+                    );
+                }
+            }
+            // The perturbed data still builds model parameters and a model data dir text.
+            let mut buf = Vec::new();
+            simrod_io::datadir::write_map1(&mut buf, &p.friction[0]).unwrap();
+            simrod_io::datadir::parse_map1(std::path::Path::new("x.csv"), std::str::from_utf8(&buf).unwrap())
+                .unwrap();
+        }
+    }
+
+    #[test]
+    fn friction_rms_matches_thesis_rmse() {
+        let d = base();
+        let u = Uncertainty::thesis();
+        for side in 0..2 {
+            let target = u.friction_nm[side].value;
+            let ms: f64 = (0..20)
+                .map(|s| rms(&diff1(&d.friction[side], &perturb(&d, s, &u).friction[side])).powi(2))
+                .sum::<f64>()
+                / 20.0;
+            let r = ms.sqrt();
+            assert!((r / target - 1.0).abs() < 0.5, "side {side}: rms {r} vs {target}");
+        }
+        // Table 5.7: L is 1.7583, R is 2.2156.
+        assert!(u.friction_nm[0].value < u.friction_nm[1].value);
+    }
+
+    #[test]
+    fn friction_stays_odd_zero_at_zero_and_signed() {
+        let d = base();
+        assert!(is_odd(&d.friction[0]) && is_odd(&d.friction[1]));
+        let u = Uncertainty::thesis().scaled(2.0);
+        for seed in 0..20 {
+            let p = perturb(&d, seed, &u);
+            for m in &p.friction {
+                assert!(is_odd(m), "seed {seed}");
+                assert!(zero_at_zero(m));
+                for (x, y) in m.x.iter().zip(&m.y) {
+                    assert!(x * y >= 0.0, "seed {seed}: friction {y} at {x} rpm");
+                }
+            }
+        }
+    }
+
+    fn rel_changes(a: &Map2, b: &Map2, rows: impl Fn(f32) -> bool) -> Vec<f64> {
+        let nx = a.x.len();
+        a.z.iter()
+            .zip(&b.z)
+            .enumerate()
+            .filter(|(i, (z, _))| rows(a.y[i / nx]) && z.abs() > 1.0)
+            .map(|(_, (z, w))| (f64::from(*w) - f64::from(*z)) / f64::from(*z))
+            .collect()
+    }
+
+    fn mean_rms(n: u64, f: impl Fn(u64) -> Vec<f64>) -> f64 {
+        ((0..n).map(|s| rms(&f(s)).powi(2)).sum::<f64>() / n as f64).sqrt()
+    }
+
+    #[test]
+    fn relative_map_rms_match_targets() {
+        let d = base();
+        let u = Uncertainty::thesis();
+        let check = |name: &str, got: f64, target: f64| {
+            assert!((got / target - 1.0).abs() < 0.5, "{name}: rms {got} vs target {target}");
+        };
+        for side in 0..2 {
+            let mot = mean_rms(20, |s| {
+                rel_changes(&d.load_torque[side], &perturb(&d, s, &u).load_torque[side], |y| y < 0.0)
+            });
+            check("load torque motoring", mot, u.load_torque_motoring_rel.value);
+            let reg = mean_rms(20, |s| {
+                rel_changes(&d.load_torque[side], &perturb(&d, s, &u).load_torque[side], |y| y > 0.0)
+            });
+            check("load torque regen", reg, u.load_torque_regen_rel.value);
+            assert!(reg > 2.0 * mot, "regen {reg} should be well above motoring {mot}");
+            let cur = mean_rms(20, |s| {
+                rel_changes(&d.load_current[side], &perturb(&d, s, &u).load_current[side], |y| y < 0.0)
+            });
+            check("load current motoring", cur, u.load_torque_motoring_rel.value);
+            let pw = mean_rms(20, |s| {
+                rel_changes(&d.load_power[side], &perturb(&d, s, &u).load_power[side], |y| y < 0.0)
+            });
+            let t = (u.load_torque_motoring_rel.value.powi(2) + u.load_power_rel.value.powi(2)).sqrt();
+            check("load power motoring", pw, t);
+        }
+        let sut_pos = mean_rms(20, |s| {
+            let p = perturb(&d, s, &u);
+            d.sut_power
+                .z
+                .iter()
+                .zip(&p.sut_power.z)
+                .filter(|(z, _)| **z > 1.0)
+                .map(|(z, w)| f64::from(w - z) / f64::from(*z))
+                .collect()
+        });
+        check("sut power", sut_pos, u.sut_power_rel.value);
+        let sut_neg = mean_rms(20, |s| {
+            let p = perturb(&d, s, &u);
+            d.sut_power
+                .z
+                .iter()
+                .zip(&p.sut_power.z)
+                .filter(|(z, _)| **z < -1.0)
+                .map(|(z, w)| f64::from(w - z) / f64::from(*z))
+                .collect()
+        });
+        check("sut power regen", sut_neg, u.sut_power_regen_rel.value);
+        for (name, get) in [
+            ("speed fwd", (|m: &ModelData| m.speed_fwd.clone()) as fn(&ModelData) -> Map1),
+            ("speed rev", |m: &ModelData| m.speed_rev.clone()),
+        ] {
+            let b = get(&d);
+            let hi = b.y.iter().copied().fold(0.0, f32::max);
+            let r = mean_rms(20, |s| {
+                let p = get(&perturb(&d, s, &u));
+                b.y.iter()
+                    .zip(&p.y)
+                    .filter(|(y, _)| **y > 0.0 && **y < 0.9 * hi)
+                    .map(|(y, w)| f64::from(w - y) / f64::from(*y))
+                    .collect()
+            });
+            check(name, r, u.speed_map_rel.value);
+        }
+    }
+
+    #[test]
+    fn scalar_params_match_targets_and_controller_settings_untouched() {
+        let d = base();
+        let u = Uncertainty::thesis();
+        for p in &u.params {
+            for key in p.keys {
+                assert!(d.param(key).is_some(), "{key} is a parameters.toml key");
+            }
+            let k = p.keys[0];
+            let v0 = f64::from(d.param(k).unwrap());
+            let logs: Vec<f64> =
+                (0..40).map(|s| (f64::from(perturb(&d, s, &u).param(k).unwrap()) / v0).ln()).collect();
+            let r = rms(&logs);
+            assert!((r / p.sigma_ln - 1.0).abs() < 0.5, "{k}: {r} vs {}", p.sigma_ln);
+            // Keys of one group share one factor.
+            let pd = perturb(&d, 7, &u);
+            let f0 = f64::from(pd.param(k).unwrap()) / v0;
+            for key in p.keys {
+                let f = f64::from(pd.param(key).unwrap()) / f64::from(d.param(key).unwrap());
+                assert!((f / f0 - 1.0).abs() < 1e-6, "{key}");
+            }
+        }
+        let p = perturb(&d, 3, &u);
+        for key in [
+            "pid_kp",
+            "pid_ki",
+            "prog.accel_hs_fwd_s",
+            "speed_limit_fwd_rpm",
+            "speed_limit_rev_rpm",
+            "max_speed_fwd_rpm",
+            "supply_voltage_v",
+            "flange_stiffness",
+            "ident.ls_fwd_pct",
+            "sut_gear_ratio",
+        ] {
+            assert_eq!(p.param(key), d.param(key), "{key} must not be perturbed");
+        }
+        // Coupling stiffness stays positive and is perturbed by tens of percent.
+        let ks: Vec<f64> = (0..20)
+            .map(|s| f64::from(perturb(&d, s, &u).param("coupling_stiffness_identified").unwrap()))
+            .collect();
+        assert!(ks.iter().all(|k| *k > 0.0));
+        assert!(ks.iter().any(|k| (k / 4369.434 - 1.0).abs() > 0.15));
+    }
+
+    #[test]
+    fn monotone_maps_keep_shape_deadband_and_limits() {
+        let d = base();
+        let u = Uncertainty::thesis().scaled(3.0);
+        for seed in 0..30 {
+            let p = perturb(&d, seed, &u);
+            for (b, m, limit) in [
+                (&d.speed_fwd, &p.speed_fwd, 2100.0),
+                (&d.speed_rev, &p.speed_rev, 500.0),
+                (&d.throttle_input, &p.throttle_input, 100.0),
+            ] {
+                assert!(non_decreasing(&m.y), "seed {seed}: {:?}", m.y);
+                for (y0, y) in b.y.iter().zip(&m.y) {
+                    if *y0 == 0.0 {
+                        assert_eq!(*y, 0.0, "zero region kept");
+                    }
+                    if *y0 == limit {
+                        assert_eq!(*y, limit, "limit kept");
+                    }
+                    assert!(*y <= limit && *y >= 0.0);
+                }
+            }
+            // The built-in throttle map is all deadband/full: nothing to change.
+            assert_eq!(p.throttle_input.y, d.throttle_input.y);
+        }
+        // A throttle map with interior points does change, monotonically.
+        let mut t = d.throttle_input.clone();
+        t.x = vec![0.0, 1.5, 2.5, 3.5, 4.5, 5.0];
+        t.y = vec![0.0, 0.0, 33.3, 66.7, 100.0, 100.0];
+        let tp = perturb_monotone(&t, 0.05, &mut rng_for(9, "throttle_input_map"));
+        assert_ne!(tp.y, t.y);
+        assert!(non_decreasing(&tp.y));
+        assert_eq!((tp.y[1], tp.y[4]), (0.0, 100.0));
+    }
+
+    #[test]
+    fn shapes_are_smooth() {
+        // On a dense axis, the second difference of a shape is far below its value.
+        let u: Vec<f64> = (0..=100).map(|i| f64::from(i) / 100.0).collect();
+        for seed in 0..20 {
+            let f = Field1::draw(&mut rng_for(seed, "smooth"));
+            let v: Vec<f64> = u.iter().map(|x| f.at(*x)).collect();
+            let d2: Vec<f64> = v.windows(3).map(|w| w[0] - 2.0 * w[1] + w[2]).collect();
+            assert!(rms(&d2) < 0.01 * rms(&v), "seed {seed}");
+            let g = Field2::draw(&mut rng_for(seed, "smooth2"));
+            let row: Vec<f64> = u.iter().map(|x| g.at(*x, 0.3)).collect();
+            let d2: Vec<f64> = row.windows(3).map(|w| w[0] - 2.0 * w[1] + w[2]).collect();
+            assert!(rms(&d2) < 0.01 * rms(&row), "seed {seed}");
+        }
+        // On the maps' own grids: neighbouring changes are strongly correlated (white
+        // noise would give a lag-1 correlation near 0 and a second difference ~2.4 times
+        // its RMS).
+        let d = base();
+        let un = Uncertainty::thesis();
+        let (mut num, mut den, mut d2s, mut vs) = (0.0, 0.0, 0.0, 0.0);
+        for seed in 0..20 {
+            let p = perturb(&d, seed, &un);
+            let a = &d.load_torque[0];
+            let nx = a.x.len();
+            for iy in 0..a.y.len() {
+                let r: Vec<f64> = (0..nx)
+                    .map(|ix| {
+                        let (z, w) = (a.z[iy * nx + ix], p.load_torque[0].z[iy * nx + ix]);
+                        if z.abs() > 1.0 {
+                            f64::from(w - z) / f64::from(z)
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect();
+                if r.contains(&0.0) {
+                    continue;
+                }
+                num += r.windows(2).map(|w| w[0] * w[1]).sum::<f64>();
+                den += r.windows(2).map(|w| w[0] * w[0]).sum::<f64>();
+                d2s += r.windows(3).map(|w| (w[0] - 2.0 * w[1] + w[2]).powi(2)).sum::<f64>();
+                vs += r.iter().map(|v| v * v).sum::<f64>() * (nx - 2) as f64 / nx as f64;
+            }
+        }
+        assert!(num / den > 0.8, "lag-1 correlation {}", num / den);
+        assert!((d2s / vs).sqrt() < 0.5, "second difference ratio {}", (d2s / vs).sqrt());
+    }
+
+    #[test]
+    fn summary_names_every_item() {
+        let d = base();
+        let u = Uncertainty::thesis();
+        let p = perturb(&d, 0, &u);
+        let s = summary(&d, &p);
+        for f in FILES_1D.iter().chain(FILES_2D.iter()) {
+            let it = s.item(f.trim_end_matches(".csv")).unwrap_or_else(|| panic!("{f}"));
+            assert!(it.rms.is_finite() && it.max_abs >= it.rms);
+        }
+        for name in ["axle_friction_L", "load_torque_R", "sut_inverter_power", "speed_map_fwd"] {
+            assert!(s.item(name).unwrap().rms > 0.0, "{name}");
+        }
+        assert_eq!(s.item("axle_friction_L").unwrap().unit, "N m");
+        assert_eq!(s.item("load_current_L").unwrap().unit, "A");
+        for ps in &u.params {
+            for key in ps.keys {
+                let it = s.item(key).unwrap_or_else(|| panic!("{key}"));
+                assert_eq!(it.unit, ps.unit);
+                assert!(it.rms > 0.0);
+            }
+        }
+        // Nothing else: unchanged parameters are not listed.
+        let n_params: usize = u.params.iter().map(|p| p.keys.len()).sum();
+        assert_eq!(s.items.len(), 12 + n_params);
+        // No perturbation: every map at 0, no parameters.
+        let z = summary(&d, &perturb(&d, 5, &Uncertainty::none()));
+        assert_eq!(z.items.len(), 12);
+        assert!(z.items.iter().all(|i| i.rms == 0.0 && i.max_abs == 0.0));
+    }
+
+    #[test]
+    fn every_sigma_has_an_origin() {
+        let u = Uncertainty::thesis();
+        let sig = [
+            u.friction_nm[0],
+            u.friction_nm[1],
+            u.friction_taper_rpm,
+            u.load_torque_motoring_rel,
+            u.load_torque_regen_rel,
+            u.load_power_rel,
+            u.sut_power_rel,
+            u.sut_power_regen_rel,
+            u.speed_map_rel,
+            u.throttle_map_rel,
+        ];
+        for s in sig {
+            assert!(s.value > 0.0 && !s.origin.is_empty());
+            assert!(s.origin.starts_with("ASSUMED") || s.origin.starts_with("table"), "{}", s.origin);
+        }
+        for p in &u.params {
+            assert!(p.sigma_ln > 0.0 && !p.origin.is_empty() && !p.unit.is_empty());
+        }
+    }
+
+    #[test]
+    fn perturbed_plant_runs_and_differs_from_the_twin() {
+        use model_core::{Config, CouplingStiffness, Inputs, Model, RateSet, SetPoints};
+        let d = base();
+        let p = perturb(&d, 11, &Uncertainty::thesis());
+        let run = |m: &ModelData| -> Vec<f32> {
+            let cfg = Config {
+                params: m.params(RateSet::Identified, CouplingStiffness::Identified),
+                ..Config::default()
+            };
+            let mut model = Model::with_maps(&cfg, m.maps().expect("maps")).expect("model");
+            let mut last = Vec::new();
+            for k in 0..6000 {
+                let sp = if k < 3000 {
+                    SetPoints { throttle_pct: 50.0, load_pct: [-40.0, -40.0] }
+                } else {
+                    SetPoints { throttle_pct: 50.0, load_pct: [40.0, 40.0] }
+                };
+                let o = model.step(&Inputs { sp, supply_v: 24.0 });
+                assert!(o.values.iter().all(|v| v.is_finite()), "step {k}");
+                last = o.values.to_vec();
+            }
+            last
+        };
+        let (a, b) = (run(&d), run(&p));
+        assert!(a.iter().zip(&b).any(|(x, y)| (x - y).abs() > 1e-3 * x.abs().max(1.0)));
+    }
+}
