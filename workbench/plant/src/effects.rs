@@ -240,12 +240,14 @@ plant_effects! {
         at_200rpm_nm: "N m", valid 0.0..=50.0, realistic 0.5..=2.0;
     }
     /// The DPU supply in current limit: above `limit` its voltage droops,
-    /// `V = V_set - R_droop (I - limit)`. ASSUMED limit and droop of a 24 V lab supply.
+    /// `V = V_set - R_droop (I - limit)`. ASSUMED limit and droop of a 24 V lab supply
+    /// (the runs draw up to ~300 A at their peaks; a steeper droop collapses the busbars
+    /// under the constant-power loads, which the plant reports as an error).
     supply_current_limit: SupplyLimit {
         /// supply current where the droop starts
-        limit_a: "A", valid 0.0..=2000.0, realistic 150.0..=220.0;
+        limit_a: "A", valid 0.0..=2000.0, realistic 200.0..=260.0;
         /// droop resistance above the limit
-        droop_ohm: "ohm", valid 0.001..=10.0, realistic 0.05..=0.3;
+        droop_ohm: "ohm", valid 0.001..=10.0, realistic 0.01..=0.04;
     }
     /// DC-link capacitance of the SuT inverter, fed through the connector resistance,
     /// with the inverter's current ripple: `C dV/dt = (V_b - V)/R - (P/V + a sin(z theta_m))`.

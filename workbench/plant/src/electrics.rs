@@ -86,9 +86,10 @@ impl Electrics {
     /// R I/v and 1 + 0.39 R/r), but has a kink there that can make Newton cycle: Newton
     /// from the last step's voltage (the root moves little per step), then bisection on
     /// a bracket if it has not converged.
-    fn busbars(&self, current_at: &dyn Fn(f64) -> f64) -> f64 {
+    /// `None` when there is no root: the draw exceeds what the supply can deliver.
+    fn busbars(&self, current_at: &dyn Fn(f64) -> f64) -> Option<f64> {
         if self.supply_r == 0.0 && self.limit.limit_a <= 0.0 {
-            return self.v_s;
+            return Some(self.v_s);
         }
         let g = |v: f64| v - self.v_s + self.sag(current_at(v));
         let tol = 1e-12 * self.v_s;
@@ -103,7 +104,7 @@ impl Electrics {
             }
             let next = (v - gv / slope).clamp(lo_v, hi_v);
             if (next - v).abs() <= tol {
-                return next;
+                return Some(next);
             }
             v = next;
         }
@@ -119,6 +120,9 @@ impl Electrics {
             hi = (hi + step).min(hi_v);
             step *= 2.0;
         }
+        if !(g(lo) <= 0.0 && g(hi) >= 0.0) {
+            return None;
+        }
         for _ in 0..200 {
             let mid = 0.5 * (lo + hi);
             if hi - lo <= tol {
@@ -130,12 +134,13 @@ impl Electrics {
                 lo = mid;
             }
         }
-        0.5 * (lo + hi)
+        Some(0.5 * (lo + hi))
     }
 
     /// Advance over a step of `h` [s] with the SuT inverter drawing `p_sut` and the loads
     /// `p_load` [W] (+ drawn); `theta` [rad] is the motor angle (inverter ripple).
-    pub(crate) fn step(&mut self, p_sut: f64, p_load: [f64; 2], theta: f64, h: f64) -> ElectricsOut {
+    /// `None` when the supply collapses (no busbar voltage carries the draw).
+    pub(crate) fn step(&mut self, p_sut: f64, p_load: [f64; 2], theta: f64, h: f64) -> Option<ElectricsOut> {
         let r = self.resistance();
         let link = self.link;
         let with_link = link.capacitance_f > 0.0 && r > 0.0;
@@ -153,7 +158,7 @@ impl Electrics {
             let i_ld = if v > 0.0 { (p_load[0] + p_load[1]) / v } else { 0.0 };
             i_sut(v) + i_ld
         };
-        let v_b = self.busbars(&current_at);
+        let v_b = self.busbars(&current_at)?;
         self.v_b = v_b;
         let i_dc = i_sut(v_b);
         let i_load = if v_b > 0.0 { [p_load[0] / v_b, p_load[1] / v_b] } else { [0.0; 2] };
@@ -163,7 +168,7 @@ impl Electrics {
             let heat = d.k_per_w * i_dc * i_dc * r;
             self.t_conn += (1.0 - (-h / d.time_constant_s).exp()) * (heat - self.t_conn);
         }
-        ElectricsOut { v_b, i_dc, v_dc, i_load }
+        Some(ElectricsOut { v_b, i_dc, v_dc, i_load })
     }
 }
 
@@ -184,13 +189,15 @@ mod tests {
         let mut fx = Effects::NONE;
         fx.supply_resistance = 0.01;
         let bench = PlantEffects {
-            supply_current_limit: SupplyLimit { limit_a: 100.0, droop_ohm: 0.2 },
+            supply_current_limit: SupplyLimit { limit_a: 60.0, droop_ohm: 0.05 },
             ..PlantEffects::default()
         };
         let mut e = Electrics::new(24.0, 0.02, &fx, &bench);
-        let out = e.step(3000.0, [0.0; 2], 0.0, 1e-5);
+        let out = e.step(2000.0, [0.0; 2], 0.0, 1e-5).unwrap();
         let i = out.i_dc;
-        let want = 24.0 - 0.01 * i - 0.2 * (i - 100.0);
-        assert!(i > 100.0 && (out.v_b - want).abs() < 1e-9, "{out:?}");
+        let want = 24.0 - f64::from(fx.supply_resistance) * i - 0.05 * (i - 60.0);
+        assert!(i > 60.0 && (out.v_b - want).abs() < 1e-9, "{out:?}");
+        // The stable (high-voltage) root: above the collapse point of the draw.
+        assert!(out.v_b > 19.0 && (out.v_dc * i - 2000.0).abs() < 1e-6, "{out:?}");
     }
 }

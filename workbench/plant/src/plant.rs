@@ -290,6 +290,8 @@ pub struct Plant {
     p_load: [f64; 2],
     elec: Electrics,
     out: ElectricsOut,
+    /// [µs] when the supply collapsed (no busbar voltage carries the draw).
+    collapsed_at_us: Option<u64>,
 }
 
 fn ramp_towards(y: f64, target: f64, max_change: f64) -> f64 {
@@ -329,6 +331,7 @@ impl Plant {
             p_load: [0.0; 2],
             out: elec.at_rest(),
             elec,
+            collapsed_at_us: None,
         };
         plant.free = plant.s.half_gap > 0.0;
         Ok(plant)
@@ -678,7 +681,10 @@ impl Plant {
         let regen = |p: f64| if p < 0.0 { p * (1.0 - f64::from(self.fx.regen_loss)) } else { p };
         let p_sut = regen(self.p_sut + p_unmapped);
         let p_load = [regen(self.p_load[0]), regen(self.p_load[1])];
-        self.out = self.elec.step(p_sut, p_load, self.x[THETA], h);
+        match self.elec.step(p_sut, p_load, self.x[THETA], h) {
+            Some(out) => self.out = out,
+            None => self.collapsed_at_us = self.collapsed_at_us.or(Some(self.t_us())),
+        }
     }
 
     /// Outputs at the current time, in the bench's channels, sensor effects applied.
@@ -757,6 +763,13 @@ impl Plant {
         let (mut out, mut sps) = (Vec::with_capacity(n), Vec::with_capacity(n));
         while self.t_us() + every_us <= end_us {
             self.advance_us(every_us)?;
+            if let Some(t) = self.collapsed_at_us {
+                return Err(SetupError::Step(format!(
+                    "the supply collapsed at t = {} s: no busbar voltage carries the draw \
+                     (supply_resistance / supply_current_limit too large for this test)",
+                    t as f64 * 1e-6
+                )));
+            }
             let sample = self.sample();
             if let Some(i) = sample.values.iter().position(|v| !v.is_finite()) {
                 return Err(SetupError::Step(format!(
