@@ -31,5 +31,8 @@ cargo build -p model-core --target thumbv7em-none-eabihf --features profile-hook
 step "firmware builds"
 cargo build -p firmware --release --target thumbv7em-none-eabihf
 
-step "all host tests (model, workbench, firmware under QEMU, reference accuracy)"
+step "all host tests (model, workbench, physics plant, firmware under QEMU, reference accuracy)"
 cargo test
+
+step "physics plant speed (target 2 s per 60 s of bench time; CI guard 6 s)"
+cargo bench -p simrod-plant --bench plant_speed -- --quick --guard 6

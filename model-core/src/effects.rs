@@ -26,30 +26,6 @@ pub struct DifferentialFriction {
     pub viscous_nm_s: f32,
 }
 
-/// Stribeck friction: extra friction at low axle speed on both half shafts, decaying
-/// as `exp(-(w/w_s)^2)` (a shape the thesis's cubic/linear friction map cannot make).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct StribeckFriction {
-    /// [N m] extra torque at (near) zero speed, per side.
-    pub peak_nm: f32,
-    /// [rpm] axle speed over which it decays.
-    pub speed_rpm: f32,
-}
-
-/// Connector resistance that drifts with its temperature over a run:
-/// `R = R0 (1 + alpha dT)`, `tau d(dT)/dt = -dT + G I^2 R`.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct ConnectorDrift {
-    /// [1/K] temperature coefficient of resistance (copper: 0.0039).
-    pub alpha_per_k: f32,
-    /// [K/W] steady temperature rise per watt dissipated in the connector.
-    pub k_per_w: f32,
-    /// [s] thermal time constant.
-    pub time_constant_s: f32,
-}
-
 /// Free play in the SuT gearbox: the motor (a share of the SuT inertia) separates from
 /// the differential when the transmitted torque reverses, crosses the gap freely and
 /// re-engages with an inelastic impact.
@@ -544,28 +520,6 @@ effects! {
         xlml([2]): "-", POSITIVE, fit SENSOR_GAIN, model None, "multiplies both I_XLML probes (1 = off)";
         xlmr([3]): "-", POSITIVE, fit SENSOR_GAIN, model None, "multiplies I_XLMR 2.3 (1 = off)";
     }
-    /// Low-speed friction peak. Not in the diagnose library: the virtual bench hides it
-    /// to prove that diagnose reports what its library cannot explain.
-    stribeck_friction => stribeck_friction: StribeckFriction =
-        StribeckFriction { peak_nm: 0.0, speed_rpm: 0.0 }, proof None;
-    {
-        peak_nm(.peak_nm): "N m", NON_NEG, fit None, model None,
-            "extra friction torque near standstill, per side (0 = off)";
-        speed_rpm(.speed_rpm): "rpm", POSITIVE.when_nonzero("peak_nm"), fit None, model None,
-            "axle speed over which it decays";
-    }
-    /// Thermal drift of the connector resistance. Not in the diagnose library (as
-    /// `stribeck_friction`).
-    connector_resistance_drift => connector_drift: ConnectorDrift =
-        ConnectorDrift { alpha_per_k: 0.0, k_per_w: 0.0, time_constant_s: 0.0 }, proof None;
-    {
-        alpha_per_k(.alpha_per_k): "1/K", Range::FINITE, fit None, model None,
-            "temperature coefficient of resistance (copper 0.0039)";
-        k_per_w(.k_per_w): "K/W", NON_NEG, fit None, model None,
-            "steady temperature rise per watt dissipated (0 = off)";
-        time_constant_s(.time_constant_s): "s", POSITIVE.when_nonzero("k_per_w"), fit None, model None,
-            "thermal time constant";
-    }
 }
 
 const LIBRARY_LEN: usize = {
@@ -594,9 +548,9 @@ const LIBRARY_IDS: [&str; LIBRARY_LEN] = {
 };
 
 /// The effects `simrod diagnose` may propose: those declared with a proof case and a
-/// fit for every parameter. `stribeck_friction` and `connector_resistance_drift` are
-/// deliberately left out: the virtual bench uses them to prove that diagnose reports
-/// what its library cannot explain instead of guessing.
+/// fit for every parameter. Physics the twin lacks on purpose (Stribeck friction, a
+/// drifting connector, ...) lives in the physics plant (`simrod-plant`), which the
+/// virtual bench uses to prove that diagnose reports what its library cannot explain.
 pub const LIBRARY: &[&str] = &LIBRARY_IDS;
 
 /// Why an effect's parameters are refused: the first parameter out of its range.

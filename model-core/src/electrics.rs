@@ -18,57 +18,6 @@ impl RateLimiter {
     }
 }
 
-/// The `connector_resistance_drift` effect: the connector's resistance rises with its
-/// temperature, which follows the `I² R` heat through a first-order lag.
-/// `R = R0 (1 + alpha dT)`, `tau d(dT)/dt = -dT + G I² R` (backward Euler).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ConnectorThermal {
-    /// [ohm] resistance at the start temperature.
-    r0: f32,
-    /// [1/K] temperature coefficient.
-    alpha_per_k: f32,
-    /// [K/W] steady rise per watt.
-    k_per_w: f32,
-    /// Backward-Euler weight `dt / (tau + dt)` (0: no drift).
-    weight: f32,
-}
-
-/// The connector's temperature rise.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct ThermalState {
-    /// [K] rise over the start temperature.
-    dtemp: f32,
-}
-
-impl ConnectorThermal {
-    /// Resistance `r0` drifting as `drift` says, at step `dt_s` [s].
-    pub fn new(r0: f32, drift: &crate::effects::ConnectorDrift, dt_s: f64) -> Self {
-        let weight =
-            if drift.k_per_w > 0.0 { (dt_s / (f64::from(drift.time_constant_s) + dt_s)) as f32 } else { 0.0 };
-        Self { r0, alpha_per_k: drift.alpha_per_k, k_per_w: drift.k_per_w, weight }
-    }
-
-    /// The resistance this step.
-    #[inline]
-    pub fn resistance(&self, s: &ThermalState) -> f32 {
-        if self.weight > 0.0 {
-            self.r0 * (1.0 + self.alpha_per_k * s.dtemp)
-        } else {
-            self.r0
-        }
-    }
-
-    /// After the step: heat from current `i` [A] through resistance `r` [ohm].
-    #[inline]
-    pub fn after_step(&self, s: &mut ThermalState, i: f32, r: f32) {
-        if self.weight > 0.0 {
-            let heat = self.k_per_w * i * i * r;
-            s.dtemp += self.weight * (heat - s.dtemp);
-        }
-    }
-}
-
 /// Solution of the connector: the inverter draws `p` [W] at its terminals through `r`
 /// [ohm] from busbars at `v_b` [V]. Returns `(i_dc, v_dc, p_limited)`.
 ///

@@ -3,7 +3,7 @@
 //! Configuration apart from state (as quartiq/idsp does): [`Model::with_maps`] computes
 //! every coefficient once into `Coeffs` (discretizations, the PID's filter weight, the
 //! blocks' constants); `State` holds what the step changes. Each stateful block (PID,
-//! delay line, backlash, connector thermal drift) is a constants struct with a method
+//! delay line, backlash) is a constants struct with a method
 //! taking its own state struct, called from one place in [`Model::step`].
 
 use crate::backlash::{Backlash, BacklashState};
@@ -13,7 +13,7 @@ use crate::data::Maps;
 use crate::delay::{Delay, DelayState};
 use crate::drivetrain::{SideDisc, SideParams, NS, PHI_AF, RAD_S_PER_RPM, RPM_PER_RAD_S, W_A, W_F, W_L};
 use crate::effects::Effects;
-use crate::electrics::{connector, ConnectorThermal, RateLimiter, ThermalState};
+use crate::electrics::{connector, RateLimiter};
 use crate::outputs::{Channel as C, Outputs};
 use crate::params::{Params, SpeedTarget};
 use crate::profile::SetPoints;
@@ -135,8 +135,8 @@ struct Coeffs {
     pid: PidConfig,
     delay: Delay,
     backlash: Backlash,
-    /// Connector resistance and its thermal drift.
-    connector: ConnectorThermal,
+    /// [ohm] connector resistance.
+    r_conn: f32,
 }
 
 /// Everything the step changes: one fixed-size struct, no heap.
@@ -155,8 +155,6 @@ struct State {
     p_load: [RateLimiter; 2],
     delay: DelayState,
     backlash: BacklashState,
-    /// Connector temperature (`connector_resistance_drift`).
-    thermal: ThermalState,
     /// [V] busbar voltage of the last step (`supply_resistance`; 0 before the first).
     v_b: f32,
     t_us: u64,
@@ -254,7 +252,7 @@ impl<'a> Model<'a> {
             pid: PidConfig::new(p, dt),
             delay: Delay::new(fx.controller_delay_s, dt_s),
             backlash,
-            connector: ConnectorThermal::new(r_conn, &fx.connector_drift, dt_s),
+            r_conn,
         };
         let s = State {
             x: [[0.0; NS]; 2],
@@ -267,7 +265,6 @@ impl<'a> Model<'a> {
             p_load: [RateLimiter::default(); 2],
             delay: DelayState::default(),
             backlash: backlash.initial(),
-            thermal: ThermalState::default(),
             v_b: 0.0,
             t_us: 0,
             hints: Hints::default(),
@@ -391,12 +388,7 @@ impl<'a> Model<'a> {
             let hint = &mut s.hints.friction[i];
             let fric_nominal = self.maps.friction[i].eval_hinted(w_rpm, hint);
             probe!(self, Mechanics);
-            let mut fric = fric_nominal * fx.axle_friction_scale[i];
-            let st = fx.stribeck_friction;
-            if st.peak_nm > 0.0 {
-                let r = w_rpm / st.speed_rpm;
-                fric += st.peak_nm * micromath::F32(-(r * r)).exp().0 * (w_rpm / 0.5).clamp(-1.0, 1.0);
-            }
+            let fric = fric_nominal * fx.axle_friction_scale[i];
             probe!(self, Tables);
             let t_map = match (c.shared_grid, q_load.get(i)) {
                 (true, Some(q)) => self.maps.load_torque[i].eval_loc(q_thr.loc, q.loc),
@@ -464,7 +456,7 @@ impl<'a> Model<'a> {
             *pl = regen(lim.update(m, p.load_power_rate_w_per_s * dt));
         }
         let v_s = inp.supply_v;
-        let r_conn = c.connector.resistance(&s.thermal);
+        let r_conn = c.r_conn;
         // Currents drawn at busbar voltage `v`: the SuT through the connector, the loads
         // directly.
         let draw = |v: f32| {
@@ -478,7 +470,6 @@ impl<'a> Model<'a> {
         }
         let (sol, i_ld) = draw(v_b);
         let (i_dc, v_dc, _) = sol;
-        c.connector.after_step(&mut s.thermal, i_dc, r_conn);
 
         s.t_us += u64::from(c.dt_us);
         probe!(self, Outputs);

@@ -156,6 +156,16 @@ impl Profile {
         Self::new(which.sets(), throttle_scale, load_scale)
     }
 
+    /// The sets, unscaled, in order.
+    pub fn sets(&self) -> impl Iterator<Item = ProfileSet> + '_ {
+        self.sets.iter().map(|t| t.set)
+    }
+
+    /// Throttle and load scales.
+    pub fn scales(&self) -> (f32, f32) {
+        (self.throttle_scale, self.load_scale)
+    }
+
     /// Total duration [µs].
     pub fn duration_us(&self) -> u64 {
         self.end_us

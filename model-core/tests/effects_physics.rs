@@ -32,19 +32,10 @@ fn every_effect_changes_the_outputs_and_none_is_bit_identical() {
         ("torque_sensor_gain", "right", 1.05),
         ("speed_sensor_gain", "sut_motor", 1.02),
         ("current_sensor_gain", "dpu", 1.03),
-        ("stribeck_friction", "peak_nm", 5.0),
-        ("connector_resistance_drift", "k_per_w", 0.2),
     ];
     for (id, param, v) in cases {
         let mut fx = Effects::NONE;
         fx.set(id, param, *v).unwrap();
-        if *id == "stribeck_friction" {
-            fx.set(id, "speed_rpm", 10.0).unwrap();
-        }
-        if *id == "connector_resistance_drift" {
-            fx.set(id, "alpha_per_k", 0.0039).unwrap();
-            fx.set(id, "time_constant_s", 10.0).unwrap();
-        }
         let out = tp07(fx);
         let changed = Channel::ALL.iter().any(|c| max_abs_diff(&base, &out, *c) > 1e-3);
         assert!(changed, "{id}.{param} = {v} changed nothing");
@@ -85,34 +76,4 @@ fn controller_delay_shifts_the_speed_response() {
     let cross = |out: &[Outputs]| out.iter().find(|o| o.get(Channel::SuTMotorEnc) > 1000.0).unwrap().t_s();
     let shift = cross(&with) - cross(&base);
     assert!((shift - 0.2).abs() < 0.01, "shift {shift}");
-}
-
-#[test]
-fn stribeck_friction_acts_at_low_speed_only() {
-    let mut fx = Effects::NONE;
-    // The slowest steady plateau the speed map allows is ~25 rpm at the axle.
-    fx.stribeck_friction = effects::StribeckFriction { peak_nm: 6.0, speed_rpm: 30.0 };
-    let cfg = Config { effects: fx, ..Config::default() };
-    // A slow plateau (~25 rpm axle) and a fast one (190 rpm).
-    let slow = steps(&[(8.0, 33.0, 0.0)]);
-    let fast = steps(&[(8.0, 100.0, 0.0)]);
-    let d_slow = mean(&run(&cfg, &slow), Channel::CKistlerL, 6.0, 8.0)
-        - mean(&run(&Config::default(), &slow), Channel::CKistlerL, 6.0, 8.0);
-    let d_fast = mean(&run(&cfg, &fast), Channel::CKistlerL, 6.0, 8.0)
-        - mean(&run(&Config::default(), &fast), Channel::CKistlerL, 6.0, 8.0);
-    assert!(d_slow > 1.0, "slow plateau gains friction: {d_slow}");
-    assert!(d_fast.abs() < 0.01, "fast plateau unchanged: {d_fast}");
-}
-
-#[test]
-fn connector_drift_raises_the_drop_as_it_warms() {
-    let mut fx = Effects::NONE;
-    fx.connector_drift = effects::ConnectorDrift { alpha_per_k: 0.0039, k_per_w: 0.1, time_constant_s: 20.0 };
-    let cfg = Config { effects: fx, ..Config::default() };
-    let out = run(&cfg, &steps(&[(40.0, 100.0, 60.0)]));
-    let r = |o: &Outputs| (o.get(Channel::VDcBusbars) - o.get(Channel::VDc)) / o.get(Channel::IDc);
-    let early = r(&out[1_000]);
-    let late = r(out.last().unwrap());
-    assert!((early - 0.0196).abs() < 0.05 * 0.0196, "early {early}");
-    assert!(late > 1.15 * early, "late {late} vs early {early}");
 }

@@ -122,17 +122,7 @@ fn check_names_the_parameter_and_its_range() {
         bad.to_string(),
         "[supply_resistance]: resistance_ohm = 2 is invalid: resistance_ohm must be in [0, 1)"
     );
-    assert_eq!(
-        effect("connector_resistance_drift").unwrap().constraint().to_string(),
-        "alpha_per_k must be finite; k_per_w must be finite and >= 0; \
-         time_constant_s must be finite and > 0 when k_per_w is not 0"
-    );
-    // A range that depends on a sibling holds only while the sibling is on.
-    let mut fx = Effects::NONE;
-    fx.set("stribeck_friction", "speed_rpm", -1.0).unwrap();
-    assert_eq!(fx.validate(), Ok(()));
-    fx.set("stribeck_friction", "peak_nm", 0.5).unwrap();
-    assert_eq!(fx.validate(), Err("stribeck_friction"));
+    assert_eq!(effect("gear_backlash").unwrap().constraint().to_string(), "backlash_deg must be in [0, 30]");
     assert_eq!(
         EffectKeyError::UnknownParameter(&["delay_s"]).describe("controller_delay", "delay").to_string(),
         "[controller_delay]: unknown parameter `delay`; accepted: `delay_s`"

@@ -6,10 +6,11 @@ use std::path::Path;
 use clap::Parser;
 use model_core::{Builtin, Channel, Config, Profile, Simulation, MEASURED};
 
-use super::chain::{measure, ChainOptions, Recorded};
 use super::*;
 use crate::measure::{load, SETPOINT_LOAD_L, SETPOINT_LOAD_R, SETPOINT_THROTTLE};
+use crate::vbench::chain::{measure, ChainOptions, Recorded};
 use crate::vbench::noise::{Gauss, NoiseModel};
+use crate::vbench::scenario::Scenario;
 
 #[derive(Parser)]
 struct Cli {
@@ -41,7 +42,8 @@ fn noise_none_gives_the_twin_bit_for_bit_in_csv_and_mat() {
     let mat = d.path().join("m.mat");
     for out in [&csv, &mat] {
         let o = out.to_str().unwrap();
-        execute(&args(&["--profile", "TP12", "--noise", "none", "-q", "--out", o])).unwrap();
+        execute(&args(&["--profile", "TP12", "--plant", "twin", "--noise", "none", "-q", "--out", o]))
+            .unwrap();
     }
     let a = load(&csv, None).unwrap();
     let b = load(&mat, None).unwrap();
@@ -271,11 +273,13 @@ fn bad_arguments_are_usage_errors() {
 
 #[test]
 fn pulse_channels_are_opt_in_and_match_the_speed_channels() {
-    use super::chain::{EDGE_TIME_KISTLER, EDGE_TIME_SIEMENS, PULSE_KISTLER, PULSE_SIEMENS};
+    use crate::vbench::chain::{EDGE_TIME_KISTLER, EDGE_TIME_SIEMENS, PULSE_KISTLER, PULSE_SIEMENS};
     use crate::vbench::encoder::windowed_rpm;
-    let plain = bench(&args(&["--profile", "TP12", "--miscount", "-q", "--out", "x.csv"])).unwrap();
-    let with =
-        bench(&args(&["--profile", "TP12", "--miscount", "--pulses", "-q", "--out", "x.csv"])).unwrap();
+    let plain =
+        bench(&args(&["--profile", "TP12", "--miscount", "-q", "--out", "x.csv"])).unwrap().measurement;
+    let with = bench(&args(&["--profile", "TP12", "--miscount", "--pulses", "-q", "--out", "x.csv"]))
+        .unwrap()
+        .measurement;
     // Off by default; on, the other channels are exactly as without.
     assert!(plain.signal(PULSE_KISTLER).is_none());
     assert_eq!(with.signals.len(), plain.signals.len() + 4);
@@ -328,4 +332,96 @@ fn pulse_timing_keys_are_checked() {
     assert_eq!(e.to_string(), "n.toml: encoders.timer_s: expected a clock period in (0, 1e-3] s");
     let e = NoiseModel::parse(Path::new("n.toml"), "[encoders]\nedge_jitter_deg = 5\n").unwrap_err();
     assert!(e.to_string().contains("edge_jitter_deg"));
+}
+
+#[test]
+fn the_physics_plant_is_the_default_and_close_to_the_twin() {
+    let d = tempfile::tempdir().unwrap();
+    let run = |plant: &str| {
+        let out = d.path().join(format!("run-{plant}.csv"));
+        let o = out.to_str().unwrap();
+        let mut a = vec!["--profile", "TP12", "--noise", "none", "-q", "--out", o];
+        if !plant.is_empty() {
+            a.extend(["--plant", plant]);
+        }
+        execute(&args(&a)).unwrap();
+        load(&out, None).unwrap()
+    };
+    let (default, physics, twin) = (run(""), run("physics"), run("twin"));
+    assert_eq!(default.signals, physics.signals, "physics is the default");
+    assert_ne!(physics.signals, twin.signals, "two plants, two codes");
+    // The same bench: within 1e-3 of each channel's span (the conformance bound).
+    for c in MEASURED {
+        let (p, t) = (series(&physics, *c), series(&twin, *c));
+        let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let rms = (p.iter().zip(t).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / p.len() as f64).sqrt();
+        assert!(rms <= 1e-3 * (hi - lo).max(1e-3 * hi.abs().max(1.0)), "{}: rms {rms}", c.name());
+    }
+}
+
+#[test]
+fn bench_only_physics_needs_the_physics_plant_and_acquisition_effects_act() {
+    let d = tempfile::tempdir().unwrap();
+    let fx = d.path().join("fx.toml");
+    std::fs::write(&fx, "[gear_mesh_ripple]\namplitude_nm = 1\nrelative = 0.02\nperiods_per_rev = 17\n")
+        .unwrap();
+    let out = d.path().join("m.csv");
+    let (f, o) = (fx.to_str().unwrap(), out.to_str().unwrap());
+    let e = bench(&args(&["--profile", "TP12", "--plant", "twin", "--effects", f, "--out", o])).unwrap_err();
+    assert!(e.to_string().contains("gear_mesh_ripple") && e.to_string().contains("--plant physics"), "{e}");
+    std::fs::write(&fx, "[sensor_clipping]\nc_kistler_l = 10\n").unwrap();
+    for plant in ["twin", "physics"] {
+        let m = bench(&args(&["--profile", "TP12", "--plant", plant, "--effects", f, "-q", "--out", o]))
+            .unwrap()
+            .measurement;
+        let v = series(&m, Channel::CKistlerL);
+        assert!(v.iter().all(|x| x.abs() <= 10.0 + 1e-6) && v.iter().any(|x| x.abs() >= 9.99), "{plant}");
+    }
+}
+
+#[test]
+fn perturbed_maps_change_the_bench_reproducibly() {
+    let d = tempfile::tempdir().unwrap();
+    let o = d.path().join("m.csv");
+    let o = o.to_str().unwrap();
+    let run = |extra: &[&str]| {
+        let mut a = vec!["--profile", "TP12", "--noise", "none", "-q", "--out", o];
+        a.extend(extra);
+        bench(&args(&a)).unwrap().measurement
+    };
+    let (base, p1, p1_again, p2) = (
+        run(&[]),
+        run(&["--perturb-maps", "1"]),
+        run(&["--perturb-maps", "1"]),
+        run(&["--perturb-maps", "2"]),
+    );
+    assert_eq!(p1.signals, p1_again.signals);
+    assert_ne!(p1.signals, base.signals);
+    assert_ne!(p1.signals, p2.signals);
+}
+
+#[test]
+fn scenarios_are_reproducible_and_keep_their_truth_apart() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("case.csv");
+    let o = out.to_str().unwrap();
+    // A seed whose case hides at least one effect.
+    let seed = (0..50u64).find(|s| !Scenario::draw(*s).picks.is_empty()).unwrap().to_string();
+    execute(&args(&["--scenario", "random", "--seed", &seed, "-q", "--out", o])).unwrap();
+    let (run1, truth1) =
+        (std::fs::read(&out).unwrap(), std::fs::read_to_string(d.path().join("case.truth.toml")).unwrap());
+    execute(&args(&["--scenario", "random", "--seed", &seed, "-q", "--out", o])).unwrap();
+    assert_eq!(std::fs::read(&out).unwrap(), run1, "same seed, same run");
+    assert_eq!(std::fs::read_to_string(d.path().join("case.truth.toml")).unwrap(), truth1);
+    let s = Scenario::draw(seed.parse().unwrap());
+    let text = String::from_utf8_lossy(&run1).to_ascii_lowercase();
+    for p in &s.picks {
+        assert!(truth1.contains(&format!("id = \"{}\"", p.id())), "{truth1}");
+        assert!(!text.contains(p.id()), "the run names no effect");
+    }
+    let e = bench(&args(&["--scenario", "random", "--profile", "TP07", "--out", o])).unwrap_err();
+    assert!(e.to_string().contains("--scenario random draws"), "{e}");
+    let e = bench(&args(&["--out", o])).unwrap_err();
+    assert!(e.to_string().contains("--scenario random"), "{e}");
 }

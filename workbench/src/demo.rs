@@ -1,7 +1,8 @@
 //! `simrod demo`: the improve-the-model loop in one command, with nothing to set up.
 //!
-//! 1. The virtual bench measures TP07 with a physical effect the model lacks (hidden
-//!    until the end), with the default sensor noise and a fixed seed.
+//! 1. The virtual bench measures TP07 on the physics plant (a bench the twin did not
+//!    write) with a physical effect the model lacks (hidden until the end), with the
+//!    default sensor noise and a fixed seed.
 //! 2. `compare` says where the model fails (and starts the history).
 //! 3. `diagnose` names the missing effect and its parameters.
 //! 4. The proposed effect file is written.
@@ -17,7 +18,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Args;
-use model_core::{Builtin, Config, Effects, Profile, Simulation};
+use model_core::{Builtin, Maps, Params, Profile, SpeedTarget};
 
 use crate::atomic::write_atomic;
 use crate::cmd_compare::{self, CompareArgs, Compared};
@@ -28,7 +29,10 @@ use crate::error::CmdError;
 use crate::history;
 use crate::measure::write::save;
 use crate::report::{change_pct, html, num, pct};
-use crate::vbench::chain::{measure, ChainOptions, Recorded};
+use crate::twin::ModelOptions;
+use crate::vbench::bench::{BenchRun, PlantKind};
+use crate::vbench::bench_effects::BenchEffects;
+use crate::vbench::chain::ChainOptions;
 use crate::vbench::noise::NoiseModel;
 
 /// The effect the demo's bench has and its model lacks: friction in the differential,
@@ -63,16 +67,29 @@ fn secs(t: Instant) -> String {
     format!("[{:.2} s]", t.elapsed().as_secs_f64())
 }
 
-/// Step 1: the measured run, written to `path`.
+/// Step 1: the measured run (physics plant), written to `path`.
 fn make_measurement(path: &Path, seed: u64) -> Result<(usize, f64), CmdError> {
-    let mut hidden = Effects::NONE;
-    hidden.set(HIDDEN.0, HIDDEN.1, HIDDEN.2).map_err(|e| CmdError::Runtime(format!("demo effect: {e:?}")))?;
-    let cfg = Config { effects: hidden, ..Config::default() };
+    let mut hidden = BenchEffects::none();
+    hidden
+        .library
+        .set(HIDDEN.0, HIDDEN.1, HIDDEN.2)
+        .map_err(|e| CmdError::Runtime(format!("demo effect: {e:?}")))?;
     let profile =
         Profile::builtin(Builtin::TP07, 1.0, 1.0).map_err(|e| CmdError::Runtime(format!("TP07: {e:?}")))?;
-    let sim = Simulation::new(&cfg, profile, 24.0).map_err(|e| CmdError::Runtime(format!("twin: {e:?}")))?;
-    let rec = Recorded::run(sim);
-    let m = measure(&rec, &ChainOptions { noise: Some(NoiseModel::default()), seed, miscount: false }, path);
+    let opts = ModelOptions::default();
+    let run = BenchRun {
+        plant: PlantKind::Physics,
+        params: Params::thesis(opts.rates, opts.coupling),
+        maps: Maps::builtin(),
+        speed_target: SpeedTarget::Map,
+        profile: &profile,
+        supply_v: opts.supply_v,
+        dt_us: 1000,
+        effects: &hidden,
+        chain: ChainOptions { noise: Some(NoiseModel::default()), seed, miscount: false },
+        pulses: false,
+    };
+    let m = run.measure(path).map_err(CmdError::Runtime)?;
     save(path, &m).map_err(|e| CmdError::Runtime(format!("{}: cannot write: {e}", path.display())))?;
     Ok((m.time_s.len(), m.time_s.last().copied().unwrap_or(0.0)))
 }
@@ -196,7 +213,7 @@ pub fn execute(args: &DemoArgs) -> Result<(), CmdError> {
     let t = Instant::now();
     let (n, dur) = make_measurement(&meas, args.seed)?;
     say(&format!(
-        "1. Measure   {}: TP07 on the virtual bench, {n} samples over {dur:.0} s, default sensor noise (seed {}),\n             with one physical effect the model does not have (revealed at step 6)  {}\n\n",
+        "1. Measure   {}: TP07 on the virtual bench (physics plant), {n} samples over {dur:.0} s, default sensor noise (seed {}),\n             with one physical effect the model does not have (revealed at step 6)  {}\n\n",
         meas.display(),
         args.seed,
         secs(t)

@@ -225,7 +225,7 @@ fn usage<T>(flag: &str, r: Result<T, String>) -> Result<T, CmdError> {
 
 /// The controller delay is held in a fixed buffer of `DELAY_CAPACITY` steps; the model
 /// would silently cap a longer delay, so refuse it instead.
-fn check_delay(fx: &Effects, dt_us: u32) -> Result<(), String> {
+pub fn check_delay(fx: &Effects, dt_us: u32) -> Result<(), String> {
     let dt_s = f64::from(dt_us) * 1e-6;
     let steps = (f64::from(fx.controller_delay_s) / dt_s + 0.5).floor();
     if steps > DELAY_CAPACITY as f64 {

@@ -18,7 +18,10 @@ fn ok(o: &Output) -> String {
 #[test]
 fn clean_bench_file_compares_to_zero_in_json() {
     let d = tempfile::tempdir().unwrap();
-    ok(&simrod(d.path(), &["bench", "--profile", "TP12", "--noise", "none", "-q", "--out", "m.mat"]));
+    ok(&simrod(
+        d.path(),
+        &["bench", "--plant", "twin", "--profile", "TP12", "--noise", "none", "-q", "--out", "m.mat"],
+    ));
     let out = ok(&simrod(d.path(), &["compare", "m.mat", "--json", "--speed-window-s", "0"]));
     let j: Value = serde_json::from_str(&out).expect("stdout is JSON");
     let channels = j["channels"].as_object().unwrap();
@@ -44,7 +47,20 @@ fn hidden_offset_is_found_and_reported_in_html() {
     std::fs::write(d.path().join("fx.toml"), "[torque_sensor_offset]\nleft_nm = 2.0\n").unwrap();
     ok(&simrod(
         d.path(),
-        &["bench", "--profile", "TP12", "--noise", "none", "--effects", "fx.toml", "-q", "--out", "m.csv"],
+        &[
+            "bench",
+            "--plant",
+            "twin",
+            "--profile",
+            "TP12",
+            "--noise",
+            "none",
+            "--effects",
+            "fx.toml",
+            "-q",
+            "--out",
+            "m.csv",
+        ],
     ));
     let table = ok(&simrod(
         d.path(),
@@ -72,7 +88,10 @@ fn hidden_offset_is_found_and_reported_in_html() {
 #[test]
 fn files_without_set_points_need_a_profile() {
     let d = tempfile::tempdir().unwrap();
-    ok(&simrod(d.path(), &["bench", "--profile", "TP12", "--noise", "none", "-q", "--out", "m.csv"]));
+    ok(&simrod(
+        d.path(),
+        &["bench", "--plant", "twin", "--profile", "TP12", "--noise", "none", "-q", "--out", "m.csv"],
+    ));
     // Keep time and the measured channels, drop the three set-point columns.
     let text = std::fs::read_to_string(d.path().join("m.csv")).unwrap();
     let cut: String = text

@@ -79,7 +79,10 @@ fn hidden_axle_friction_is_named_and_its_effect_file_closes_the_gap() {
 fn nothing_missing_writes_nothing() {
     let d = tempfile::tempdir().unwrap();
     let p = d.path();
-    ok(&simrod(p, &["bench", "--profile", "TP12", "--noise", "none", "-q", "--out", "m.csv"]));
+    ok(&simrod(
+        p,
+        &["bench", "--plant", "twin", "--profile", "TP12", "--noise", "none", "-q", "--out", "m.csv"],
+    ));
     let o = simrod(p, &["diagnose", "m.csv", "--json", "--write-effects", "fx.toml"]);
     let j: Value = serde_json::from_str(&ok(&o)).unwrap();
     assert_eq!(j["kind"], "nothing_missing", "{}", j["verdict"]);
@@ -92,7 +95,10 @@ fn nothing_missing_writes_nothing() {
 fn bad_input_exits_2_before_any_work() {
     let d = tempfile::tempdir().unwrap();
     let p = d.path();
-    ok(&simrod(p, &["bench", "--profile", "TP12", "--noise", "none", "-q", "--out", "m.csv"]));
+    ok(&simrod(
+        p,
+        &["bench", "--plant", "twin", "--profile", "TP12", "--noise", "none", "-q", "--out", "m.csv"],
+    ));
     // Keep time, SuTMotorEnc, C_Kistler_L and the set points: too few channels to fit.
     let text = std::fs::read_to_string(p.join("m.csv")).unwrap();
     let cut: String = text

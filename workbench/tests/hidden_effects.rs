@@ -10,6 +10,8 @@
 use model_core::{Builtin, Effects};
 use workbench::diagnose::proof::*;
 use workbench::diagnose::{Twin, VerdictKind};
+use workbench::vbench::bench::PlantKind;
+use workbench::vbench::bench_effects::BenchEffects;
 
 /// Seeds of the test: two per effect (the sweep example runs more).
 const SEEDS: [u64; 2] = [101, 202];
@@ -113,10 +115,10 @@ fn two_hidden_effects_are_found_in_two_rounds() {
 #[test]
 fn stribeck_friction_is_unexplained_and_located_at_low_speed() {
     // TP11 at 0.6 holds long plateaus at low axle speed (~28 rpm), where it acts.
-    let mut truth = Effects::NONE;
-    truth.set("stribeck_friction", "peak_nm", 6.0).unwrap();
-    truth.set("stribeck_friction", "speed_rpm", 30.0).unwrap();
-    let run = bench_run(&truth, (Builtin::TP11, 0.6, 0.0), 404);
+    let mut truth = BenchEffects::none();
+    truth.plant.set("stribeck_friction", "peak_nm", 6.0).unwrap();
+    truth.plant.set("stribeck_friction", "speed_rpm", 30.0).unwrap();
+    let run = bench_run_with(&truth, PlantKind::Physics, (Builtin::TP11, 0.6, 0.0), 404);
     let d = diagnose_run(&run, &Effects::NONE).expect("diagnosis runs");
     assert!(matches!(d.kind, VerdictKind::Unexplained | VerdictKind::Partial), "{}", d.verdict);
     let loc = d.unexplained.expect("a location");
@@ -125,7 +127,7 @@ fn stribeck_friction_is_unexplained_and_located_at_low_speed() {
         "{loc:?}"
     );
     // The window covers a passage through low axle speed, where Stribeck friction acts.
-    let clean = run.twin.run(&truth).unwrap();
+    let clean = run.twin.run(&Effects::NONE).unwrap();
     let ch = run.twin.channels().iter().position(|c| c.name() == "T_Kistler_L").unwrap();
     let dt = run.twin.dt_s();
     let (a, b) = ((loc.window_s.0 / dt) as usize, ((loc.window_s.1 / dt) as usize).min(clean[ch].len()));
@@ -138,11 +140,11 @@ fn stribeck_friction_is_unexplained_and_located_at_low_speed() {
 
 #[test]
 fn drifting_connector_resistance_is_not_claimed_and_located_in_the_connector() {
-    let mut truth = Effects::NONE;
-    truth.set("connector_resistance_drift", "alpha_per_k", 0.0039).unwrap();
-    truth.set("connector_resistance_drift", "k_per_w", 0.1).unwrap();
-    truth.set("connector_resistance_drift", "time_constant_s", 20.0).unwrap();
-    let run = bench_run(&truth, (Builtin::TP07, 1.0, 1.0), 505);
+    let mut truth = BenchEffects::none();
+    truth.plant.set("connector_resistance_drift", "alpha_per_k", 0.0039).unwrap();
+    truth.plant.set("connector_resistance_drift", "k_per_w", 0.1).unwrap();
+    truth.plant.set("connector_resistance_drift", "time_constant_s", 20.0).unwrap();
+    let run = bench_run_with(&truth, PlantKind::Physics, (Builtin::TP07, 1.0, 1.0), 505);
     let d = diagnose_run(&run, &Effects::NONE).expect("diagnosis runs");
     assert!(matches!(d.kind, VerdictKind::Unexplained | VerdictKind::Partial), "{}", d.verdict);
     let loc = d.unexplained.expect("a location");

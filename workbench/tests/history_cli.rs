@@ -27,7 +27,20 @@ fn every_compare_appends_one_record_and_history_lists_them_in_order() {
     std::fs::write(p.join("fx.toml"), "[torque_sensor_offset]\nleft_nm = 2.0\n").unwrap();
     ok(&simrod(
         p,
-        &["bench", "--profile", "TP12", "--noise", "none", "--effects", "fx.toml", "-q", "--out", "m.csv"],
+        &[
+            "bench",
+            "--plant",
+            "twin",
+            "--profile",
+            "TP12",
+            "--noise",
+            "none",
+            "--effects",
+            "fx.toml",
+            "-q",
+            "--out",
+            "m.csv",
+        ],
     ));
     let hist = p.join("m.simrod-history.jsonl");
 

@@ -27,13 +27,17 @@ fn json(o: &Output) -> Value {
 
 /// A noise-only virtual-bench run (default measurement chain: Gaussian sensors and encoder
 /// counting) of a model with nothing missing: every residual is noise or within the
-/// encoders' counting resolution, and nothing is headlined.
+/// encoders' counting resolution, and nothing is headlined. On the twin's own bits: on the
+/// physics plant TP07's I_DC and P_SuT_inv residuals read coloured, rightly — the twin's
+/// 1 ms step lags the continuous inverter power by up to 4 A in the load steps' fast
+/// transients (NRMSE 4e-4, ten times less at 100 µs; `workbench/plant/tests/conformance.rs`).
 #[test]
 fn noise_only_runs_raise_no_alarm() {
     let d = tempfile::tempdir().unwrap();
     for (profile, seed) in [("TP07", "11"), ("TP11", "12")] {
         let file = format!("{profile}.csv");
-        let o = simrod(d.path(), &["bench", "--profile", profile, "--seed", seed, "-q", "--out", &file]);
+        let args = ["bench", "--plant", "twin", "--profile", profile, "--seed", seed, "-q", "--out", &file];
+        let o = simrod(d.path(), &args);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let j = json(&simrod(d.path(), &["compare", &file, "--json", "--no-history"]));
         for (name, w) in j["whiteness"].as_object().unwrap() {

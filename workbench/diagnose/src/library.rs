@@ -106,7 +106,7 @@ mod tests {
             (g.neutral, g.delta, g.lower, g.upper, g.unit, g.quantum(1e-3)),
             (1.0, 0.01, 0.5, 2.0, "-", 0.0)
         );
-        assert!(spec("stribeck_friction", "peak_nm").is_none());
+        assert!(spec("stribeck_friction", "peak_nm").is_none(), "bench-only physics is not the twin's");
         // Library order is declaration order.
         let order: Vec<&str> = lib.iter().map(|s| s.effect).fold(Vec::new(), |mut v, e| {
             if v.last() != Some(&e) {

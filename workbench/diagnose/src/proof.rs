@@ -2,12 +2,14 @@
 //! judge the result the way the project's acceptance criteria do. Used by the
 //! hidden-effect tests and by `examples/hidden_sweep.rs` (success rates over seeds).
 
-use model_core::{Builtin, Config, Effects, Profile, Simulation};
+use model_core::{Builtin, Effects, Maps, Params, Profile, SpeedTarget};
 
 use super::engine::{diagnose, Diagnosis, Options, Twin, VerdictKind};
 use super::twin::{fitted_channels, BuiltinProbe, RecordedTwin};
 use simrod_twin::{InputSource, MeasuredTwin, ModelOptions};
-use simrod_vbench::chain::{measure, ChainOptions, Recorded};
+use simrod_vbench::bench::{BenchRun, PlantKind};
+use simrod_vbench::bench_effects::BenchEffects;
+use simrod_vbench::chain::ChainOptions;
 use simrod_vbench::noise::NoiseModel;
 
 /// A hidden-effect case: which effect, the range its magnitude is drawn from, and a
@@ -48,22 +50,39 @@ pub struct Run {
     pub twin: RecordedTwin,
 }
 
-/// Make a run of `profile` with `truth` hidden in it and default bench noise.
+/// Make a run of `profile` with the library effects `truth` hidden in it, on the twin,
+/// with default bench noise. On the physics plant (`bench_run_with`) the same cases are
+/// found (15 of 15 at the test seeds), but the twin's 1 ms discretization biases four
+/// fits beyond their reported intervals (coupling stiffness 7 %, coupling damping 13 %,
+/// backlash 9 %, the unhidden accel_fwd rate by 5e-4): the uncertainty does not yet
+/// include model error. That is the realistic-data diagnosis issue's to fix.
 pub fn bench_run(truth: &Effects, profile: (Builtin, f32, f32), seed: u64) -> Run {
-    let cfg = Config::default();
+    let fx = BenchEffects { library: *truth, ..BenchEffects::none() };
+    bench_run_with(&fx, PlantKind::Twin, profile, seed)
+}
+
+/// [`bench_run`] with any bench effects (bench-only physics, acquisition) on `plant`.
+pub fn bench_run_with(fx: &BenchEffects, plant: PlantKind, profile: (Builtin, f32, f32), seed: u64) -> Run {
+    let opts = ModelOptions::default();
     let p = Profile::builtin(profile.0, profile.1, profile.2).expect("built-in profile");
-    let sim = Simulation::new(&Config { effects: *truth, ..cfg }, p, 24.0).expect("valid truth");
-    let rec = Recorded::run(sim);
-    let m = measure(
-        &rec,
-        &ChainOptions { noise: Some(NoiseModel::default()), seed, miscount: false },
-        "bench".as_ref(),
-    );
+    let run = BenchRun {
+        plant,
+        params: Params::thesis(opts.rates, opts.coupling),
+        maps: Maps::builtin(),
+        speed_target: SpeedTarget::Map,
+        profile: &p,
+        supply_v: opts.supply_v,
+        dt_us: 1000,
+        effects: fx,
+        chain: ChainOptions { noise: Some(NoiseModel::default()), seed, miscount: false },
+        pulses: false,
+    };
+    let m = run.measure("bench".as_ref()).expect("a valid hidden-effect case");
     let channels = fitted_channels();
     let meas =
         channels.iter().map(|c| m.signal(c.name()).map(|s| s.values.clone()).unwrap_or_default()).collect();
     // The twin sees the run as `simrod diagnose` sees the file: one path for both.
-    let twin = MeasuredTwin::new(&m, &ModelOptions::default(), &InputSource::Recorded).expect("a bench run");
+    let twin = MeasuredTwin::new(&m, &opts, &InputSource::Recorded).expect("a bench run");
     Run { meas, twin: RecordedTwin { twin, channels } }
 }
 

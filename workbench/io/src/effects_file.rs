@@ -192,15 +192,9 @@ mod tests {
         assert!(e.starts_with("fx.toml:2:11: ") && e.contains("expected a number"), "{e}");
         let e = parse("delay_s = 0.01\n").unwrap_err();
         assert!(e.starts_with("fx.toml:1:1: ") && e.contains("[effect_id]"), "{e}");
-        // A range that depends on a sibling: pointed at the section when not given.
+        // Bench-only physics is not the twin's: named with the twin's vocabulary.
         let e = parse("[stribeck_friction]\npeak_nm = 0.5\n").unwrap_err();
-        assert_eq!(
-            e,
-            "fx.toml:1:2: [stribeck_friction]: speed_rpm = 0 is invalid: \
-             speed_rpm must be finite and > 0 when peak_nm is not 0"
-        );
-        // ... and not checked while the effect is off.
-        assert_eq!(parse("[stribeck_friction]\nspeed_rpm = -1\n").unwrap().stribeck_friction.speed_rpm, -1.0);
+        assert!(e.starts_with("fx.toml:1:2: ") && e.contains("stribeck_friction"), "{e}");
         let e = parse("[controller_delay]\ndelay_s = 0.01\n[controller_delay]\n").unwrap_err();
         assert!(e.starts_with("fx.toml:3:"), "{e}");
     }

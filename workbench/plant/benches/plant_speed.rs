@@ -1,7 +1,8 @@
 //! Speed of the physics plant: wall time of each built-in profile at a 1 kHz output,
 //! one core, no effects and with every bench-only effect on, printed per 60 s of bench
 //! time. Target (issue 11): a 60 s run in at most 2 s. Run:
-//! `cargo bench -p simrod-plant --bench plant_speed` (`-- --quick`: TP07 only).
+//! `cargo bench -p simrod-plant --bench plant_speed` (`-- --quick`: TP07 only;
+//! `-- --guard S`: exit 1 if any run takes more than S s per 60 s, CI's generous guard).
 
 use std::time::Instant;
 
@@ -19,7 +20,11 @@ fn all_bench_effects() -> PlantEffects {
 }
 
 fn main() {
-    let quick = std::env::args().any(|a| a == "--quick");
+    let args: Vec<String> = std::env::args().collect();
+    let quick = args.iter().any(|a| a == "--quick");
+    let guard: Option<f64> =
+        args.iter().position(|a| a == "--guard").and_then(|i| args.get(i + 1)).and_then(|v| v.parse().ok());
+    let mut worst: f64 = 0.0;
     let profiles: &[Builtin] = if quick { &[Builtin::TP07] } else { &Builtin::ALL };
     println!("{:<6} {:>8} {:>12} {:>12} {:>14}", "", "bench s", "wall s", "wall/60 s", "effects");
     for &b in profiles {
@@ -42,11 +47,16 @@ fn main() {
             let out = plant.run(1000).expect("finite run");
             let wall = start.elapsed().as_secs_f64();
             assert!(!out.is_empty());
-            println!(
-                "{:<6} {bench_s:>8.1} {wall:>12.3} {:>12.3} {label:>14}",
-                b.name(),
-                wall * 60.0 / bench_s
-            );
+            let per_60 = wall * 60.0 / bench_s;
+            worst = worst.max(per_60);
+            println!("{:<6} {bench_s:>8.1} {wall:>12.3} {per_60:>12.3} {label:>14}", b.name());
         }
+    }
+    if let Some(g) = guard {
+        if worst > g {
+            eprintln!("plant speed guard: {worst:.2} s per 60 s of bench time, above {g} s");
+            std::process::exit(1);
+        }
+        println!("plant speed guard: worst {worst:.2} s per 60 s, within {g} s");
     }
 }

@@ -30,8 +30,12 @@
 //! Rows: one per model step, at the end of the step (`t = dt, 2 dt, ...`), the timing
 //! convention `simrod compare` assumes.
 
+pub mod bench;
+pub mod bench_effects;
 pub mod chain;
+pub mod daq;
 pub mod encoder;
 pub mod noise;
-pub mod daq;
 pub mod perturb;
+pub mod physics;
+pub mod scenario;
