@@ -22,8 +22,9 @@ struct Cli {
 enum Command {
     /// Run the twin on a test profile and write every channel to a CSV.
     Simulate(SimulateArgs),
-    /// Virtual bench: run the twin, add sensor noise and encoder counting, and write
-    /// only what the real bench records (CSV or MAT).
+    /// Virtual bench: run the physics plant (or `--plant twin`) with any effects, add the
+    /// acquisition's flaws, sensor noise and encoder counting, and write only what the real
+    /// bench records (CSV or MAT); `--scenario random` draws a realistic hidden case.
     Bench(workbench::cmd_bench::BenchArgs),
     /// Run the twin on a measured run's inputs and show where they disagree: per
     /// channel, per operating region, worst time spans, residual structure.

@@ -1,5 +1,8 @@
-//! `simrod bench`: a virtual test bench. It runs the twin (with any effects switched
-//! on), puts a measurement chain on top and writes what the real bench's data
+//! `simrod bench`: a virtual test bench. It runs a plant — the independent physics plant
+//! (`simrod-plant`, the default) or the twin — with any effects switched on
+//! ([`bench_effects`]: the twin's, bench-only physics, the acquisition's [`daq`]), on
+//! the identified or a perturbed data set ([`perturb`]), puts a measurement chain on top
+//! ([`bench`] is the one path) and writes what the real bench's data
 //! acquisition would export: `time [s]`, the measured channels
 //! (`model_core::MEASURED`, bench names and units) and the set points as the PLC logs
 //! them (`SuT Throttle [%]`, `Dm Left [%]`, `Dm Right [%]`), as CSV or MAT. The file
