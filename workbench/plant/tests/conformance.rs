@@ -7,7 +7,8 @@
 //! 2. Every library effect at a realistic magnitude (the middle of its proof range)
 //!    moves the plant and the twin, each with its own implementation, by the same
 //!    amount: the difference of the two contributions (run with minus run without) is
-//!    within 2 % of the contribution's RMS on every channel it clearly moves. A second
+//!    within 2 % of the contribution's RMS on every channel it clearly moves (by at least
+//!    1 % of the channel's span), and at least on the channel it moves most. A second
 //!    check of every effect block of the twin.
 //!
 //! NRMSE = RMSE / (max - min of the plant's channel over the run).
@@ -237,8 +238,12 @@ fn table(dt_us: u32) -> Vec<String> {
     for (c, row) in cases.iter().zip(&rows) {
         let label = format!("{}.{} = {}", c.id, c.param, c.value);
         let known = KNOWN_DEVIATIONS.iter().find(|(id, _)| *id == c.id);
+        // The channels the effect clearly moves; at least the one it moves most (an
+        // effect whose every contribution is below 1 % of span is still checked there).
+        let most = row.iter().map(|(size, _)| *size).fold(0.0, f64::max);
+        assert!(most > 0.0, "{label} moves no channel");
         for (ch, (size, share)) in CHANNELS.iter().zip(row) {
-            if *size < MOVED {
+            if *size < MOVED && *size < most {
                 continue;
             }
             let ok = within(*share, CONTRIBUTION_BOUND);
