@@ -131,7 +131,8 @@ impl Scenario {
             }
         }
         let mut r = Rng::new(seed, S_PERTURB);
-        let perturb_maps = (r.uniform() < 0.5).then(|| r.next_u64());
+        // A seed a user can type back (`--perturb-maps`), within TOML's integers.
+        let perturb_maps = (r.uniform() < 0.5).then(|| r.next_u64() >> 33);
         Self { seed, profile, throttle_scale, load_scale, picks, perturb_maps }
     }
 
@@ -188,18 +189,33 @@ pub fn moved_channels(with: &Recorded, without: &Recorded) -> Vec<String> {
 pub struct Truth {
     /// Why this file exists and who may read it.
     pub note: &'static str,
-    pub seed: u64,
+    pub seed: Seed,
     pub profile: String,
     pub throttle_scale: f32,
     pub load_scale: f32,
     /// Seed of the map perturbation (absent: the identified data).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub perturb_maps: Option<u64>,
+    pub perturb_maps: Option<Seed>,
     /// Per perturbed map or parameter: RMS and largest change, in its unit.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub perturbation: Vec<TruthChange>,
     #[serde(rename = "effect", skip_serializing_if = "Vec::is_empty")]
     pub effects: Vec<TruthEffect>,
+}
+
+/// A seed as TOML can hold it: an integer up to `i64::MAX`, beyond that its decimal
+/// text (TOML integers are 64-bit signed).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Seed {
+    Int(i64),
+    Text(String),
+}
+
+impl From<u64> for Seed {
+    fn from(v: u64) -> Self {
+        i64::try_from(v).map_or_else(|_| Self::Text(v.to_string()), Self::Int)
+    }
 }
 
 /// One perturbed item.
@@ -245,11 +261,11 @@ impl Truth {
             .collect();
         Self {
             note: "simrod bench --scenario random: what is hidden in the run. No diagnosis reads this file.",
-            seed: s.seed,
+            seed: s.seed.into(),
             profile: s.profile.name().to_owned(),
             throttle_scale: s.throttle_scale,
             load_scale: s.load_scale,
-            perturb_maps: s.perturb_maps,
+            perturb_maps: s.perturb_maps.map(Seed::from),
             perturbation,
             effects,
         }
@@ -294,6 +310,20 @@ mod tests {
         assert!(kinds.iter().all(|k| *k > 20), "every kind drawn: {kinds:?}");
         assert!((60..140).contains(&perturbed) && (60..140).contains(&negative), "{perturbed} {negative}");
         assert_ne!(Scenario::draw(1), Scenario::draw(2));
+    }
+
+    #[test]
+    fn every_truth_serializes_even_with_the_largest_seed() {
+        for seed in (0..60).chain([u64::MAX]) {
+            let s = Scenario::draw(seed);
+            let moves = vec![Vec::new(); s.picks.len()];
+            let text = Truth::new(&s, moves, Vec::new()).to_toml().unwrap();
+            let want = if seed == u64::MAX { format!("seed = \"{seed}\"") } else { format!("seed = {seed}") };
+            assert!(text.contains(&want), "{text}");
+            if let Some(p) = s.perturb_maps {
+                assert!(text.contains(&format!("perturb_maps = {p}")), "{text}");
+            }
+        }
     }
 
     #[test]
