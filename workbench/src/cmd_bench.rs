@@ -90,7 +90,7 @@ pub struct BenchArgs {
     /// Perturb the bench's maps and identified parameters (smoothly, within the
     /// uncertainty the thesis reports) with this seed: a bench that is not the
     /// identified data. The twin that compares keeps the identified data.
-    #[arg(long, value_name = "SEED")]
+    #[arg(long, value_name = "SEED", allow_negative_numbers = true, value_parser = crate::simulate::parse_seed)]
     pub perturb_maps: Option<u64>,
 
     /// Draw a realistic random case from `--seed` (profile, scales, 0–3 effects, map
@@ -109,7 +109,7 @@ pub struct BenchArgs {
     pub noise: NoiseArg,
 
     /// Seed of the noise (and of `--scenario`); the same seed gives the same file.
-    #[arg(long, value_name = "N", default_value_t = 1)]
+    #[arg(long, value_name = "N", default_value_t = 1, allow_negative_numbers = true, value_parser = crate::simulate::parse_seed)]
     pub seed: u64,
 
     /// The Siemens encoder loses pulses at high speed (thesis fig. 5.35/5.36).
@@ -300,13 +300,23 @@ fn truth_path(args: &BenchArgs) -> PathBuf {
 /// `simrod bench`.
 pub fn execute(args: &BenchArgs) -> Result<(), CmdError> {
     let start = Instant::now();
-    let Benched { measurement: m, truth } = bench(args)?;
     let out: &Path = &args.run.out;
-    if let Some((path, _)) = &truth {
-        if path == out {
-            return Err(CmdError::Usage(format!("--truth {}: the same file as --out", path.display())));
+    let inputs = args.run.inputs().file(
+        "--noise",
+        match &args.noise {
+            NoiseArg::File(p) => Some(p.as_path()),
+            _ => None,
+        },
+    );
+    inputs.check("--out", out).map_err(CmdError::Usage)?;
+    if args.scenario.is_some() {
+        let truth = truth_path(args);
+        inputs.check("--truth", &truth).map_err(CmdError::Usage)?;
+        if truth == out {
+            return Err(CmdError::Usage(format!("--truth {}: the same file as --out", truth.display())));
         }
     }
+    let Benched { measurement: m, truth } = bench(args)?;
     save(out, &m).map_err(|e| CmdError::Runtime(format!("{}: cannot write: {e}", out.display())))?;
     if let Some((path, text)) = &truth {
         write_atomic(path, |w| w.write_all(text.as_bytes()))

@@ -89,7 +89,7 @@ pub struct CompareArgs {
     pub load_scale: Option<f32>,
 
     /// Width of the worst-span windows [s].
-    #[arg(long, value_name = "S", default_value_t = 2.0, value_parser = parse_window)]
+    #[arg(long, value_name = "S", default_value_t = 2.0, value_parser = parse_window, allow_negative_numbers = true)]
     pub window_s: f64,
 
     /// Print the comparison as JSON on stdout instead of the table.
@@ -155,6 +155,18 @@ pub struct Compared {
 
 /// Compare, record in the history, write the report; prints nothing.
 pub fn run(args: &CompareArgs) -> Result<Compared, CmdError> {
+    let inputs = args
+        .model
+        .inputs()
+        .file("the measurement", Some(&args.meas))
+        .file("--mapping", args.mapping.as_deref())
+        .file("--baseline-effects", args.baseline_effects.as_deref());
+    if let Some(dir) = &args.report {
+        inputs.check("--report", dir).map_err(CmdError::Usage)?;
+    }
+    if !args.no_history {
+        inputs.check("the history", &history::path_for(&args.meas)).map_err(CmdError::Usage)?;
+    }
     let mut model = args.model.load()?;
     model.sensors = args.sensors.model();
     let effects = model.effects;
@@ -198,21 +210,21 @@ pub fn run(args: &CompareArgs) -> Result<Compared, CmdError> {
     let mut rec = iterate::options_rec(&opts, &result, args.mapping.as_deref(), args.allow_gaps);
     rec.data_dir = args.model.data_dir.as_ref().map(|p| p.display().to_string());
     let entry = Entry::new(&result, &args.meas, &effects, args.model.effects.as_deref(), rec);
-    let mut recorded = None;
     if !args.no_history {
-        match history::append(&hist_path, &entry) {
-            Ok(()) => {
-                past.entries.push(entry);
-                recorded = Some(hist_path.clone());
-            }
-            Err(e) => warnings.push(format!("{}: history not recorded: {e}", hist_path.display())),
-        }
+        // The report shows this iteration; the file gets it only once everything worked.
+        past.entries.push(entry.clone());
     }
-
     let report = match &args.report {
         Some(dir) => Some(write_report(dir, &loaded.measurement, &opts, &result, before, &past, &hist_path)?),
         None => None,
     };
+    let mut recorded = None;
+    if !args.no_history {
+        match history::append(&hist_path, &entry) {
+            Ok(()) => recorded = Some(hist_path.clone()),
+            Err(e) => warnings.push(format!("{}: history not recorded: {e}", hist_path.display())),
+        }
+    }
     Ok(Compared { result, history: recorded, report, warnings })
 }
 

@@ -86,7 +86,7 @@ pub struct DiagnoseArgs {
     pub mapping: Option<PathBuf>,
 
     /// Worker threads for the simulations (default: the machine's cores, at most 8).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=256))]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=256), allow_negative_numbers = true)]
     pub threads: Option<u32>,
 }
 
@@ -163,6 +163,12 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
     model.sensors = args.sensors.model();
     let base = model.effects;
     if let Some(out) = &args.write_effects {
+        let inputs = args
+            .model
+            .inputs()
+            .file("the measurement", Some(&args.meas))
+            .file("--mapping", args.mapping.as_deref());
+        inputs.check("--write-effects", out).map_err(CmdError::Usage)?;
         check_out_path(out)?;
     }
     let load_opts = LoadOptions {

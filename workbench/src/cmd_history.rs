@@ -118,6 +118,12 @@ pub fn plot(h: &History, all: bool) -> String {
 
 /// `simrod history`.
 pub fn execute(args: &HistoryArgs) -> Result<(), CmdError> {
+    if let Some(p) = &args.plot {
+        let inputs = simrod_io::guard::Inputs::new()
+            .file("the measurement", Some(&args.meas))
+            .file("the history", Some(&history::path_for(&args.meas)));
+        inputs.check("--plot", p).map_err(CmdError::Usage)?;
+    }
     let h = load(args)?;
     for w in &h.warnings {
         eprintln!("warning: {w}");

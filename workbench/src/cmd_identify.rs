@@ -110,6 +110,11 @@ pub struct IdentifyArgs {
 /// Run `simrod identify`.
 pub fn execute(args: &IdentifyArgs) -> Result<(), CmdError> {
     let (what, a) = args.what.split();
+    let inputs = simrod_io::guard::Inputs::new()
+        .files("a run", &a.runs)
+        .file("--mapping", a.mapping.as_deref())
+        .dir("--data-dir", a.data_dir.as_deref());
+    inputs.check_dir("--out", &a.out).map_err(CmdError::Usage)?;
     if a.out.is_file() {
         return Err(CmdError::Usage(format!("--out {}: is a file; expected a directory", a.out.display())));
     }

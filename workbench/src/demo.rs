@@ -48,11 +48,11 @@ pub struct DemoArgs {
     pub dir: PathBuf,
 
     /// Seed of the measured run's sensor noise.
-    #[arg(long, value_name = "N", default_value_t = 1)]
+    #[arg(long, value_name = "N", default_value_t = 1, allow_negative_numbers = true, value_parser = crate::simulate::parse_seed)]
     pub seed: u64,
 
     /// Worker threads for the diagnosis (default: the machine's cores, at most 8).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=256))]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=256), allow_negative_numbers = true)]
     pub threads: Option<u32>,
 }
 

@@ -46,7 +46,7 @@ pub struct SimulateArgs {
     pub load_scale: Option<f32>,
 
     /// Step [µs], 10..=10000; 1000 is the bench's rate.
-    #[arg(long, value_name = "US", default_value_t = 1000, value_parser = parse_dt_us)]
+    #[arg(long, value_name = "US", default_value_t = 1000, value_parser = parse_dt_us, allow_negative_numbers = true)]
     pub dt_us: u32,
 
     #[command(flatten)]
@@ -121,6 +121,11 @@ pub fn parse_dt_us(s: &str) -> Result<u32, String> {
     check_dt_us(v)
 }
 
+/// A random seed: a whole number in [0, 2^64).
+pub fn parse_seed(s: &str) -> Result<u64, String> {
+    s.trim().parse::<u64>().map_err(|_| format!("expected a whole number in [0, {}]", u64::MAX))
+}
+
 /// A validated run: what to simulate and how to describe it.
 #[derive(Debug, Clone)]
 pub struct RunSpec {
@@ -166,6 +171,11 @@ fn profile_error(e: ProfileError, what: &str) -> String {
 }
 
 impl SimulateArgs {
+    /// The input files the arguments name (profile file, effect file, data directory).
+    pub fn inputs(&self) -> simrod_io::guard::Inputs {
+        self.model.inputs().file("--profile-file", self.source.profile_file.as_deref())
+    }
+
     /// Validate the arguments and load the input files. Everything wrong here is a
     /// usage error; nothing is written.
     pub fn spec(&self) -> Result<RunSpec, CmdError> {
@@ -261,6 +271,7 @@ pub fn run(sim: Simulation<'_>, title: String, mut out: Option<&mut dyn Write>) 
 
 /// `simrod simulate`.
 pub fn execute(args: &SimulateArgs) -> Result<(), CmdError> {
+    args.inputs().check("--out", &args.out).map_err(CmdError::Usage)?;
     let spec = args.spec()?;
     check_out_path(&args.out)?;
     let sim = spec.simulation()?;

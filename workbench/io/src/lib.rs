@@ -6,6 +6,7 @@ pub mod atomic;
 pub mod datadir;
 pub mod effects_file;
 pub mod error;
+pub mod guard;
 pub mod measure;
 pub mod profile_file;
 pub mod progress;

@@ -38,7 +38,7 @@ pub struct ModelArgs {
 
     /// DPU supply voltage set point [V], 12..=30 as on the bench (an input of the twin;
     /// the busbar voltage is an output).
-    #[arg(long, value_name = "V", default_value_t = 24.0, value_parser = parse_supply_v)]
+    #[arg(long, value_name = "V", default_value_t = 24.0, value_parser = parse_supply_v, allow_negative_numbers = true)]
     pub supply_v: f32,
 
     /// Model data directory (parameters.toml and the CSV maps, the format of
@@ -56,7 +56,7 @@ pub struct SensorArgs {
     /// centred on each sample (0.1 s on the SimRod bench); the twin's speeds get the same
     /// average. 0: the speeds are not window-counted (a `simrod simulate` file or a
     /// `simrod bench --noise none` run).
-    #[arg(long, value_name = "S", default_value_t = SensorModel::bench().speed_window_s, value_parser = parse_speed_window)]
+    #[arg(long, value_name = "S", default_value_t = SensorModel::bench().speed_window_s, value_parser = parse_speed_window, allow_negative_numbers = true)]
     pub speed_window_s: f64,
 }
 
@@ -110,6 +110,14 @@ impl ModelArgs {
                 .map_err(|m| CmdError::Usage(format!("--supply-v: {m}")))?,
             sensors: SensorModel::NONE,
         })
+    }
+
+    /// The input files these flags name (effect file, data directory), for the check
+    /// that no output replaces an input.
+    pub fn inputs(&self) -> simrod_io::guard::Inputs {
+        simrod_io::guard::Inputs::new()
+            .file("--effects", self.effects.as_deref())
+            .dir("--data-dir", self.data_dir.as_deref())
     }
 
     /// One line naming the model choices, for summaries.

@@ -1,0 +1,96 @@
+//! Reliability of the commands on clumsy input (issue 13's cases, each as the user typed
+//! it). No output ever replaces an input: every command refuses, before any work, an
+//! output that is one of its inputs by any name (hard links included), and `compare`
+//! records its history only once it has succeeded. Negative numbers are values.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn simrod(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_simrod")).current_dir(dir).args(args).output().expect("run simrod")
+}
+
+/// Refused as a usage error, naming the input, and `file` left as it was.
+fn refused(dir: &Path, args: &[&str], file: &str) {
+    let before = std::fs::read(dir.join(file)).unwrap();
+    let o = simrod(dir, args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+    assert!(err.contains("is the input") || err.contains("holds the input"), "{args:?}: {err}");
+    assert_eq!(std::fs::read(dir.join(file)).unwrap(), before, "{args:?} changed {file}");
+}
+
+fn setup() -> tempfile::TempDir {
+    let d = tempfile::tempdir().unwrap();
+    let o = simrod(
+        d.path(),
+        &["bench", "--plant", "twin", "--profile", "TP12", "--seed", "1", "-q", "--out", "good.csv"],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    d
+}
+
+#[test]
+fn outputs_that_are_inputs_are_refused() {
+    let d = setup();
+    let p = d.path();
+    assert!(simrod(p, &["compare", "good.csv"]).status.success());
+    refused(p, &["history", "good.csv", "--plot", "good.csv"], "good.csv");
+    refused(p, &["history", "good.csv", "--plot", "good.simrod-history.jsonl"], "good.simrod-history.jsonl");
+    refused(p, &["diagnose", "good.csv", "--write-effects", "good.csv"], "good.csv");
+    std::fs::write(p.join("p.toml"), "[[set]]\nduration_s = 1\nthrottle_pct = 50\n").unwrap();
+    refused(p, &["simulate", "--profile-file", "p.toml", "--out", "p.toml"], "p.toml");
+    std::fs::write(p.join("fx.toml"), "[controller_delay]\ndelay_s = 0.01\n").unwrap();
+    refused(p, &["simulate", "--profile", "TP12", "--effects", "fx.toml", "--out", "fx.toml"], "fx.toml");
+    // By another name: a hard link to the effect file.
+    std::fs::hard_link(p.join("fx.toml"), p.join("link.csv")).unwrap();
+    refused(p, &["bench", "--profile", "TP12", "--effects", "fx.toml", "--out", "link.csv"], "fx.toml");
+    // identify writes a data directory: not into the directory of its runs.
+    std::fs::create_dir(p.join("runs")).unwrap();
+    std::fs::copy(p.join("good.csv"), p.join("runs/good.csv")).unwrap();
+    std::fs::copy(p.join("good.csv"), p.join("runs/speed_map_fwd.csv")).unwrap();
+    refused(
+        p,
+        &["identify", "speed-map", "runs/good.csv", "runs/speed_map_fwd.csv", "--out", "runs"],
+        "runs/speed_map_fwd.csv",
+    );
+}
+
+#[test]
+fn a_failed_compare_records_no_history() {
+    let d = setup();
+    let p = d.path();
+    std::fs::write(p.join("f"), "a file, not a directory").unwrap();
+    let o = simrod(p, &["compare", "good.csv", "--report", "f"]);
+    assert!(!o.status.success());
+    assert!(!p.join("good.simrod-history.jsonl").exists(), "history written by a failed compare");
+    assert!(simrod(p, &["compare", "good.csv"]).status.success());
+    let lines = std::fs::read_to_string(p.join("good.simrod-history.jsonl")).unwrap();
+    assert_eq!(lines.lines().count(), 1);
+}
+
+/// A negative number is a value, checked as one, not taken for an unknown flag.
+#[test]
+fn negative_numbers_are_values_with_their_range() {
+    let d = tempfile::tempdir().unwrap();
+    for (args, want) in [
+        (
+            &["bench", "--profile", "TP12", "--seed", "-1", "--out", "x.csv"][..],
+            "--seed <N>': expected a whole number",
+        ),
+        (
+            &["bench", "--profile", "TP12", "--supply-v", "-24", "--out", "x.csv"],
+            "expected a voltage in [12, 30] V",
+        ),
+        (
+            &["simulate", "--profile", "TP12", "--dt-us", "-5", "--out", "x.csv"],
+            "expected a whole number of µs",
+        ),
+        (&["compare", "x.csv", "--speed-window-s", "-0.1"], "--speed-window-s <S>'"),
+    ] {
+        let o = simrod(d.path(), args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(want) && !err.contains("unexpected argument"), "{args:?}: {err}");
+    }
+}
