@@ -385,8 +385,14 @@ const fn proof(param: &'static str, lo: f32, hi: f32, profile: Builtin, scales: 
     Some(Proof { param, lo, hi, profile, scales })
 }
 
-const NON_NEG: Range = Range::at_least(0.0);
-const POSITIVE: Range = Range::above(0.0);
+// Ranges keep the twin physical and its step stable: a parameter may move a value by
+// about an order of magnitude from the thesis's, not to 1e30 or 1e-12 (issue 13: such
+// values gave non-physical output with exit 0). The diagnose search bounds (`Fit`) lie
+// inside them.
+/// A multiplier on an identified value.
+const SCALE: Range = Range::closed(0.1, 10.0);
+/// A multiplier on a sensor's reading.
+const GAIN: Range = Range::closed(0.1, 10.0);
 const FACTOR: Option<Fit> = Some(Fit::abs(0.05, 0.1, 5.0));
 const SENSOR_GAIN: Option<Fit> = Some(Fit::abs(0.02, 0.5, 2.0));
 
@@ -398,17 +404,17 @@ effects! {
         DifferentialFriction { coulomb_nm: 0.0, viscous_nm_s: 0.0 },
         proof proof("coulomb_nm", 2.0, 6.0, TP07, (1.0, 1.0));
     {
-        coulomb_nm(.coulomb_nm): "N m", NON_NEG, fit Some(Fit::abs(1.0, 0.0, 60.0)), model None,
+        coulomb_nm(.coulomb_nm): "N m", Range::closed(0.0, 200.0), fit Some(Fit::abs(1.0, 0.0, 60.0)), model None,
             "Coulomb friction torque at the case, axle frame (0 = off)";
-        viscous_nm_s_per_rad(.viscous_nm_s): "N m s/rad", NON_NEG, fit Some(Fit::abs(0.2, 0.0, 20.0)),
+        viscous_nm_s_per_rad(.viscous_nm_s): "N m s/rad", Range::closed(0.0, 100.0), fit Some(Fit::abs(0.2, 0.0, 20.0)),
             model None, "viscous coefficient at the case, axle frame (0 = off)";
     }
     /// Multipliers on the L, R friction maps (1 = off).
     axle_friction_scale => axle_friction_scale: [f32; 2] = [1.0, 1.0],
         proof proof("left", 1.15, 1.4, TP11, (0.79, 0.0));
     {
-        left([0]): "-", NON_NEG, fit FACTOR, model None, "multiplies the L friction map (1 = off)";
-        right([1]): "-", NON_NEG, fit FACTOR, model None, "multiplies the R friction map (1 = off)";
+        left([0]): "-", Range::closed(0.0, 10.0), fit FACTOR, model None, "multiplies the L friction map (1 = off)";
+        right([1]): "-", Range::closed(0.0, 10.0), fit FACTOR, model None, "multiplies the R friction map (1 = off)";
     }
     /// Free play in the SuT gearbox.
     gear_backlash => gear_backlash: GearBacklash = GearBacklash { backlash_deg: 0.0 },
@@ -422,7 +428,7 @@ effects! {
     controller_delay => controller_delay_s: f32 = 0.0,
         proof proof("delay_s", 0.05, 0.15, TP14, (1.0, 0.0));
     {
-        delay_s(): "s", NON_NEG, fit Some(Fit::abs(0.02, 0.0, 0.25).in_whole_steps()), model None,
+        delay_s(): "s", Range::closed(0.0, 10.0), fit Some(Fit::abs(0.02, 0.0, 0.25).in_whole_steps()), model None,
             "throttle-to-controller delay, at most 256 steps (0 = off)";
     }
     /// Multipliers on the Curtis ramp rates `[accel, decel]` for `[forward, reverse]`
@@ -430,42 +436,42 @@ effects! {
     inverter_rate_scale => inverter_rate_scale: [[f32; 2]; 2] = [[1.0, 1.0], [1.0, 1.0]],
         proof proof("decel_fwd", 0.7, 0.9, TP14, (1.0, 0.0));
     {
-        accel_fwd([0][0]): "-", POSITIVE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
+        accel_fwd([0][0]): "-", SCALE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
             "multiplies the forward acceleration rates (1 = off)";
-        decel_fwd([0][1]): "-", POSITIVE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
+        decel_fwd([0][1]): "-", SCALE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
             "multiplies the forward deceleration rates (1 = off)";
-        accel_rev([1][0]): "-", POSITIVE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
+        accel_rev([1][0]): "-", SCALE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
             "multiplies the reverse acceleration rates (1 = off)";
-        decel_rev([1][1]): "-", POSITIVE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
+        decel_rev([1][1]): "-", SCALE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
             "multiplies the reverse deceleration rates (1 = off)";
     }
     /// [N m/rad] replaces the coupling stiffness when set.
     coupling_stiffness => coupling_stiffness: Option<f32> = None,
         proof proof("stiffness_nm_per_rad", 6000.0, 12000.0, TP07, (1.0, 1.0));
     {
-        stiffness_nm_per_rad(): "N m/rad", POSITIVE, fit Some(Fit::rel(0.2, 300.0, 60_000.0)),
+        stiffness_nm_per_rad(): "N m/rad", Range::closed(100.0, 1.0e6), fit Some(Fit::rel(0.2, 300.0, 60_000.0)),
             model Some(|p| p.coupling_stiffness), "replaces the flexible coupling stiffness";
     }
     /// [N m s/rad] replaces the coupling damping when set.
     coupling_damping => coupling_damping: Option<f32> = None,
         proof proof("damping_nm_s_per_rad", 10.0, 30.0, TP07, (1.0, 1.0));
     {
-        damping_nm_s_per_rad(): "N m s/rad", NON_NEG, fit Some(Fit::abs(2.0, 0.0, 300.0)),
+        damping_nm_s_per_rad(): "N m s/rad", Range::closed(0.0, 1000.0), fit Some(Fit::abs(2.0, 0.0, 300.0)),
             model Some(|p| p.coupling_damping), "replaces the flexible coupling damping";
     }
     /// Multipliers on the SuT, load L, load R inertias (1 = off).
     inertia_scale => inertia_scale: [f32; 3] = [1.0, 1.0, 1.0],
         proof proof("sut", 1.2, 1.5, TP14, (1.0, 0.0));
     {
-        sut([0]): "-", POSITIVE, fit FACTOR, model None, "multiplies the SuT-side inertia (1 = off)";
-        load_l([1]): "-", POSITIVE, fit FACTOR, model None, "multiplies the load L inertia (1 = off)";
-        load_r([2]): "-", POSITIVE, fit FACTOR, model None, "multiplies the load R inertia (1 = off)";
+        sut([0]): "-", SCALE, fit FACTOR, model None, "multiplies the SuT-side inertia (1 = off)";
+        load_l([1]): "-", SCALE, fit FACTOR, model None, "multiplies the load L inertia (1 = off)";
+        load_r([2]): "-", SCALE, fit FACTOR, model None, "multiplies the load R inertia (1 = off)";
     }
     /// [ohm] replaces the connector resistance when set.
     connector_resistance => connector_resistance: Option<f32> = None,
         proof proof("resistance_ohm", 0.025, 0.04, TP11, (0.79, 1.0));
     {
-        resistance_ohm(): "ohm", NON_NEG, fit Some(Fit::abs(0.005, 0.0, 0.3)),
+        resistance_ohm(): "ohm", Range::closed(0.0, 1.0), fit Some(Fit::abs(0.005, 0.0, 0.3)),
             model Some(|p| p.connector_resistance), "replaces the busbar-to-inverter connector resistance";
     }
     /// [ohm] DPU source resistance: the busbars sag with current.
@@ -486,39 +492,39 @@ effects! {
     torque_sensor_offset => torque_sensor_offset: [f32; 2] = [0.0, 0.0],
         proof proof("left_nm", 0.5, 2.0, TP11, (0.79, 0.0));
     {
-        left_nm([0]): "N m", Range::FINITE, fit Some(Fit::abs(1.0, -60.0, 60.0)), model None,
+        left_nm([0]): "N m", Range::closed(-200.0, 200.0), fit Some(Fit::abs(1.0, -60.0, 60.0)), model None,
             "added to C_Kistler_L (0 = off)";
-        right_nm([1]): "N m", Range::FINITE, fit Some(Fit::abs(1.0, -60.0, 60.0)), model None,
+        right_nm([1]): "N m", Range::closed(-200.0, 200.0), fit Some(Fit::abs(1.0, -60.0, 60.0)), model None,
             "added to C_Kistler_R (0 = off)";
     }
     /// [-] multiplies C_Kistler_L, C_Kistler_R (1 = off).
     torque_sensor_gain => torque_sensor_gain: [f32; 2] = [1.0, 1.0],
         proof proof("right", 1.02, 1.06, TP07, (1.0, 1.0));
     {
-        left([0]): "-", POSITIVE, fit SENSOR_GAIN, model None, "multiplies C_Kistler_L (1 = off)";
-        right([1]): "-", POSITIVE, fit SENSOR_GAIN, model None, "multiplies C_Kistler_R (1 = off)";
+        left([0]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies C_Kistler_L (1 = off)";
+        right([1]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies C_Kistler_R (1 = off)";
     }
     /// [-] multiplies SuTMotorEnc, T_Kistler_L, T_Kistler_R, SiemensEnc (1 = off).
     speed_sensor_gain => speed_sensor_gain: [f32; 4] = [1.0; 4],
         proof proof("sut_motor", 1.01, 1.03, TP11, (0.79, 0.0));
     {
-        sut_motor([0]): "-", POSITIVE, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
+        sut_motor([0]): "-", GAIN, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
             "multiplies SuTMotorEnc (1 = off)";
-        flange_l([1]): "-", POSITIVE, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
+        flange_l([1]): "-", GAIN, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
             "multiplies T_Kistler_L (1 = off)";
-        flange_r([2]): "-", POSITIVE, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
+        flange_r([2]): "-", GAIN, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
             "multiplies T_Kistler_R (1 = off)";
-        siemens([3]): "-", POSITIVE, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
+        siemens([3]): "-", GAIN, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
             "multiplies SiemensEnc (1 = off)";
     }
     /// [-] multiplies I_DPU 2.7, I_DC, the two I_XLML probes, I_XLMR 2.3 (1 = off).
     current_sensor_gain => current_sensor_gain: [f32; 4] = [1.0; 4],
         proof proof("dpu", 1.02, 1.06, TP07, (1.0, 1.0));
     {
-        dpu([0]): "-", POSITIVE, fit SENSOR_GAIN, model None, "multiplies I_DPU 2.7 (1 = off)";
-        dc([1]): "-", POSITIVE, fit SENSOR_GAIN, model None, "multiplies I_DC (1 = off)";
-        xlml([2]): "-", POSITIVE, fit SENSOR_GAIN, model None, "multiplies both I_XLML probes (1 = off)";
-        xlmr([3]): "-", POSITIVE, fit SENSOR_GAIN, model None, "multiplies I_XLMR 2.3 (1 = off)";
+        dpu([0]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies I_DPU 2.7 (1 = off)";
+        dc([1]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies I_DC (1 = off)";
+        xlml([2]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies both I_XLML probes (1 = off)";
+        xlmr([3]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies I_XLMR 2.3 (1 = off)";
     }
 }
 

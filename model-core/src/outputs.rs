@@ -102,6 +102,12 @@ impl Outputs {
         self.values.get(c as usize).copied().unwrap_or(f32::NAN)
     }
 
+    /// The first channel (in `Channel::ALL` order) whose value is not finite: a run that
+    /// diverged. Callers refuse to write such a step.
+    pub fn non_finite(&self) -> Option<Channel> {
+        Channel::ALL.iter().copied().find(|c| !self.get(*c).is_finite())
+    }
+
     #[inline]
     pub(crate) fn set(&mut self, c: Channel, v: f32) {
         if let Some(s) = self.values.get_mut(c as usize) {

@@ -258,7 +258,19 @@ pub fn run(sim: Simulation<'_>, title: String, mut out: Option<&mut dyn Write>) 
     if let Some(w) = out.as_mut() {
         w.write_all(header().as_bytes())?;
     }
-    for o in sim {
+    for (k, o) in sim.enumerate() {
+        if let Some(c) = o.non_finite() {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidData,
+                format!(
+                    "the model diverged at step {} (t = {:.6} s): {} is {}; nothing was written",
+                    k + 1,
+                    o.t_s(),
+                    c.name(),
+                    o.get(c)
+                ),
+            ));
+        }
         acc.observe(&o);
         if let Some(w) = out.as_mut() {
             let t = Instant::now();
@@ -282,7 +294,10 @@ pub fn execute(args: &SimulateArgs) -> Result<(), CmdError> {
         summary = Some(run(sim, spec.title.clone(), Some(w))?);
         Ok(())
     })
-    .map_err(|e| CmdError::Runtime(format!("cannot write {}: {e}", args.out.display())))?;
+    .map_err(|e| match e.kind() {
+        io::ErrorKind::InvalidData => CmdError::Runtime(e.to_string()),
+        _ => CmdError::Runtime(format!("cannot write {}: {e}", args.out.display())),
+    })?;
     let Some(mut summary) = summary else {
         return Err(CmdError::Runtime("the run produced no summary".into()));
     };

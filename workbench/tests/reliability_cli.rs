@@ -94,3 +94,55 @@ fn negative_numbers_are_values_with_their_range() {
         assert!(err.contains(want) && !err.contains("unexpected argument"), "{args:?}: {err}");
     }
 }
+
+/// Garbage is never called a result: effect values that make the twin non-physical are
+/// refused with their range, and a run that diverges anyway (here a data directory with
+/// a 1e30 N m/rad flange) is an error naming the step, time and channel, with no file.
+#[test]
+fn diverging_runs_are_errors_and_unstable_effects_are_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path();
+    for (fx, want) in [
+        ("[coupling_stiffness]\nstiffness_nm_per_rad = 1e30\n", "stiffness_nm_per_rad must be"),
+        ("[inertia_scale]\nsut = 1e-12\n", "sut must be"),
+    ] {
+        std::fs::write(p.join("fx.toml"), fx).unwrap();
+        let o = simrod(p, &["simulate", "--profile", "TP12", "--effects", "fx.toml", "--out", "o.csv"]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{fx}: {err}");
+        assert!(err.contains("fx.toml:") && err.contains(want), "{fx}: {err}");
+    }
+    let data = p.join("data");
+    std::fs::create_dir(&data).unwrap();
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../model-core/data");
+    for e in std::fs::read_dir(&src).unwrap().flatten() {
+        if e.path().is_file() {
+            std::fs::copy(e.path(), data.join(e.file_name())).unwrap();
+        }
+    }
+    let params = std::fs::read_to_string(data.join("parameters.toml")).unwrap();
+    let stiff: String = params
+        .lines()
+        .map(|l| {
+            if l.starts_with("flange_stiffness") {
+                "flange_stiffness = 1e30".to_owned()
+            } else {
+                l.to_owned()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    std::fs::write(data.join("parameters.toml"), stiff).unwrap();
+    for cmd in [&["simulate"][..], &["bench", "--plant", "twin"]] {
+        let mut args = cmd.to_vec();
+        args.extend(["--profile", "TP12", "--data-dir", "data", "--out", "o.csv"]);
+        let o = simrod(p, &args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{cmd:?}: {err}");
+        assert!(
+            err.contains("diverged at") && err.contains("t = 13.") && err.contains("inf"),
+            "{cmd:?}: {err}"
+        );
+        assert!(!p.join("o.csv").exists(), "{cmd:?} wrote a diverged run");
+    }
+}

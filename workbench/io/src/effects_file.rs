@@ -243,7 +243,13 @@ mod tests {
         let mut all = Effects::NONE;
         for (id, params) in EFFECT_PARAMS {
             for (k, p) in params.iter().enumerate() {
-                let v = 0.1 + 0.137 * k as f32;
+                // A value inside the parameter's declared range, different per parameter.
+                let r = fxdecl::effect(id).unwrap().params[k].range;
+                let v = if r.min.is_finite() && r.max.is_finite() {
+                    r.min + (0.3 + 0.05 * k as f32) * (r.max - r.min)
+                } else {
+                    0.1 + 0.137 * k as f32
+                };
                 let mut one = Effects::NONE;
                 one.set(id, p, v).unwrap();
                 all.set(id, p, v).unwrap();

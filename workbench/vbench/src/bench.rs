@@ -69,7 +69,8 @@ impl BenchRun<'_> {
                     effects: self.effects.library,
                 };
                 let model = Model::with_maps(&cfg, self.maps).map_err(|e| format!("{e:?}"))?;
-                Ok(Recorded::run(Simulation::from_model(model, self.profile.clone(), self.supply_v)))
+                let rec = Recorded::run(Simulation::from_model(model, self.profile.clone(), self.supply_v));
+                diverged(&rec).map_or(Ok(rec), Err)
             }
         }
     }
@@ -85,4 +86,18 @@ impl BenchRun<'_> {
         self.effects.daq.apply_after_noise(&mut m);
         Ok(m)
     }
+}
+
+/// Why a recorded run is not a result: the earliest non-finite value, with its time
+/// and channel (`None`: every value is finite).
+fn diverged(rec: &Recorded) -> Option<String> {
+    let first = rec
+        .measured
+        .iter()
+        .zip(model_core::MEASURED)
+        .filter_map(|(series, c)| series.iter().position(|v| !v.is_finite()).map(|k| (k, *c, series[k])))
+        .min_by_key(|(k, _, _)| *k)?;
+    let (k, c, v) = first;
+    let t = rec.t_us.get(k).map_or(f64::NAN, |t| *t as f64 * 1e-6);
+    Some(format!("the twin diverged at t = {t:.6} s: {} is {v}", c.name()))
 }
