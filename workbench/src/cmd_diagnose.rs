@@ -204,6 +204,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
         o.threads = t as usize;
     }
     let (step_note, samples, dt_us) = (al.grid.step_note.clone(), al.grid.time_s.len(), al.grid.dt_us);
+    let data_notes = al.grid.data_notes.clone();
     let duration_s = al.grid.duration_s();
     let recorded = RecordedTwin { twin, channels: fitted.channels.clone() };
     let t1 = Instant::now();
@@ -213,6 +214,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
 
     let mut notes = loaded.notes.clone();
     notes.push(step_note.clone());
+    notes.extend(data_notes);
     if !fitted.missing.is_empty() {
         notes.push(format!("not in the file (not fitted): {}", fitted.missing.join(", ")));
     }

@@ -146,3 +146,39 @@ fn diverging_runs_are_errors_and_unstable_effects_are_refused() {
         assert!(!p.join("o.csv").exists(), "{cmd:?} wrote a diverged run");
     }
 }
+
+/// A value no sensor could give (one sample of 1e308 N m) stops compare and diagnose
+/// with the channel, time and value; a dead channel is named in the report.
+#[test]
+fn implausible_values_stop_the_analysis_and_dead_channels_are_named() {
+    let d = setup();
+    let p = d.path();
+    let text = std::fs::read_to_string(p.join("good.csv")).unwrap();
+    let edit = |col: usize, f: &dyn Fn(usize) -> Option<String>| -> String {
+        let mut out = String::new();
+        for (k, line) in text.lines().enumerate() {
+            let mut cells: Vec<String> = line.split(',').map(str::to_owned).collect();
+            if k > 0 {
+                if let Some(v) = f(k) {
+                    cells[col] = v;
+                }
+            }
+            out.push_str(&cells.join(","));
+            out.push('\n');
+        }
+        out
+    };
+    // Column 3 is C_Kistler_L (time, Throttle, SuTMotorEnc, C_Kistler_L, ...).
+    assert!(text.lines().next().unwrap().split(',').nth(3).unwrap().starts_with("C_Kistler_L"));
+    std::fs::write(p.join("bad.csv"), edit(3, &|k| (k == 100).then(|| "1e308".to_owned()))).unwrap();
+    for cmd in ["compare", "diagnose"] {
+        let o = simrod(p, &[cmd, "bad.csv"]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{cmd}: {err}");
+        assert!(err.contains("C_Kistler_L at t = 0.1 s is 1e308"), "{cmd}: {err}");
+    }
+    std::fs::write(p.join("dead.csv"), edit(3, &|_| Some("-0".to_owned()))).unwrap();
+    let o = simrod(p, &["compare", "dead.csv", "--no-history"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("C_Kistler_L is constant"), "dead channel not named");
+}

@@ -220,6 +220,7 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
     let t2 = Instant::now();
 
     let mut notes = vec![al.grid.step_note.clone()];
+    notes.extend(al.grid.data_notes.iter().cloned());
     let in_gaps = al.grid.gaps.iter().filter(|g| **g).count();
     if in_gaps > 0 {
         notes.push(format!("{in_gaps} samples inside interpolated gaps are left out"));

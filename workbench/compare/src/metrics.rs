@@ -7,8 +7,6 @@ use serde::Serialize;
 
 /// The channels' operating spans (`workbench/data/channel_spans.toml`, each with its
 /// origin), compiled in.
-const SPANS_TOML: &str = include_str!("../../data/channel_spans.toml");
-
 /// Share of a channel's operating span below which its measured range no longer
 /// normalises the error: a channel that moves less than this in a run is near-constant.
 pub const SPAN_FLOOR_FRACTION: f64 = 0.1;
@@ -16,15 +14,7 @@ pub const SPAN_FLOOR_FRACTION: f64 = 0.1;
 /// documented span.
 pub const NORMALISER_FLOOR_ABS: f64 = 1e-9;
 
-/// The documented operating span of channel `name` [its unit], if it has one.
-pub fn operating_span(name: &str) -> Option<f64> {
-    static SPANS: std::sync::OnceLock<Vec<(String, f64)>> = std::sync::OnceLock::new();
-    let spans = SPANS.get_or_init(|| {
-        let table: toml::Table = toml::from_str(SPANS_TOML).unwrap_or_default();
-        table.iter().filter_map(|(k, v)| Some((k.clone(), v.get("span")?.as_float()?))).collect()
-    });
-    spans.iter().find(|(n, _)| n == name).map(|(_, v)| *v)
-}
+pub use simrod_twin::spans::operating_span;
 
 /// What the NRMSE of a channel is relative to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

@@ -10,7 +10,9 @@
 
 pub mod args;
 pub mod measured;
+pub mod plausible;
 pub mod sensors;
+pub mod spans;
 
 use std::sync::Arc;
 

@@ -58,6 +58,8 @@ pub enum TwinError {
     Profile(String),
     #[error("--window-s must be finite and > 0")]
     Window,
+    #[error("{0}")]
+    Implausible(String),
 }
 
 /// One channel, measured and simulated on the comparison grid.
@@ -92,6 +94,8 @@ pub struct RunGrid {
     /// Samples inside gaps the reader interpolated across (`--allow-gaps`): left out of
     /// every figure.
     pub gaps: Vec<bool>,
+    /// What the file's values say about its channels (dead channels), for the report.
+    pub data_notes: Vec<String>,
 }
 
 impl RunGrid {
@@ -137,6 +141,7 @@ pub struct MeasuredTwin {
 impl MeasuredTwin {
     /// Put `meas` on the comparison grid and take its set points from `source`.
     pub fn new(meas: &Measurement, model: &ModelOptions, source: &InputSource) -> Result<Self, TwinError> {
+        let data_notes = crate::plausible::check(meas)?;
         let grid = choose_grid(&meas.time_s)?;
         let time_s = grid.resample_to.clone().unwrap_or_else(|| meas.time_s.clone());
         let set_points = match source {
@@ -181,6 +186,7 @@ impl MeasuredTwin {
                 step_note: grid.note,
                 set_points,
                 gaps,
+                data_notes,
             },
             inputs,
             measured,
