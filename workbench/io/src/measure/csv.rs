@@ -249,6 +249,19 @@ pub(crate) fn parse(origin: &Path, text: &str) -> Result<RawTable, FileError> {
     if lines.is_empty() {
         return Err(FileError::whole(origin, "no data rows (empty file after the header)"));
     }
+    // A data row with no newline after it may be a write cut short inside a number
+    // (-0.07646873 read as -0.07): refuse it rather than read a shorter number.
+    let tail = body.rsplit('\n').next().unwrap_or("").trim();
+    if !tail.is_empty() && !tail.starts_with('#') {
+        let line = lines.last().copied().unwrap_or(header_line);
+        return Err(FileError::at(
+            origin,
+            line,
+            1,
+            "the file ends inside this row (no newline after it): a write cut short? \
+             If the row is complete, end the file with a newline",
+        ));
+    }
     let time = cols.remove(tc);
     Ok(RawTable {
         source: origin.to_path_buf(),

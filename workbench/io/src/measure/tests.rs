@@ -388,3 +388,14 @@ fn mat_errors_name_the_variable() {
     let p = file(d.path(), "garbage.mat", "hello");
     assert!(err(&p, &strict()).contains("not a MAT file"));
 }
+
+#[test]
+fn a_row_without_its_newline_is_a_cut_write_not_a_shorter_number() {
+    let d = tempfile::tempdir().unwrap();
+    let cut = GOOD.trim_end_matches('\n');
+    let last = cut.lines().count();
+    let e = err(&file(d.path(), "cut.csv", cut), &LoadOptions::default());
+    assert!(e.contains(&format!("cut.csv:{last}:1:")) && e.contains("ends inside this row"), "{e}");
+    // A trailing comment or blank line after the last row is fine.
+    assert!(load(&file(d.path(), "c.csv", &format!("{GOOD}# end")), None).is_ok());
+}
