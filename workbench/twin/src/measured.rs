@@ -43,6 +43,11 @@ pub enum TwinError {
     TooShort(usize),
     #[error("the time axis is not finite and strictly increasing")]
     BadTime,
+    #[error(
+        "the file spans {span_s:e} s ({rows} rows): shorter than two 1 ms steps of the twin, \
+         nothing to compare (is the time column in seconds?)"
+    )]
+    ShortSpan { span_s: f64, rows: usize },
     #[error("channel {channel} has {got} values for {want} time samples")]
     Length { channel: String, got: usize, want: usize },
     #[error(
@@ -292,6 +297,9 @@ fn choose_grid(time: &[f64]) -> Result<GridChoice, TwinError> {
     let dt = f64::from(FALLBACK_DT_US) * 1e-6;
     let steps = ((t1 - t0) / dt + 1e-9).floor() as usize;
     let grid: Vec<f64> = (0..=steps).map(|j| t0 + j as f64 * dt).collect();
+    if grid.len() < 2 {
+        return Err(TwinError::ShortSpan { span_s: t1 - t0, rows: n });
+    }
     let why = if !uniform {
         "the time axis is not uniform".to_string()
     } else if !whole {
@@ -435,5 +443,11 @@ mod tests {
         assert!(matches!(choose_grid(&[1.0]), Err(TwinError::TooShort(1))));
         assert!(matches!(choose_grid(&[0.0, f64::NAN, 2.0]), Err(TwinError::BadTime)));
         assert!(matches!(choose_grid(&[0.0, 0.002, 0.001, 0.003]), Err(TwinError::BadTime)));
+        // 1000 rows 1 ns apart (a time column in the wrong unit) span 1 µs: refused, not
+        // "1 samples".
+        let ns: Vec<f64> = (0..1000).map(|k| k as f64 * 1e-9).collect();
+        let Err(e) = choose_grid(&ns) else { panic!("a 1 µs file was accepted") };
+        assert!(matches!(e, TwinError::ShortSpan { rows: 1000, .. }), "{e}");
+        assert!(e.to_string().contains("is the time column in seconds?"), "{e}");
     }
 }
