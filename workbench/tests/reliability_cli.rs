@@ -182,3 +182,48 @@ fn implausible_values_stop_the_analysis_and_dead_channels_are_named() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stdout).contains("C_Kistler_L is constant"), "dead channel not named");
 }
+
+/// Load: 16 `compare` at once on one file append 16 whole history records (every line
+/// valid JSON); 4 `bench` at once to one output leave one complete file and no
+/// temporary files.
+#[test]
+fn concurrent_commands_keep_history_and_output_whole() {
+    let d = setup();
+    let p = d.path();
+    std::thread::scope(|s| {
+        let runs: Vec<_> =
+            (0..16).map(|_| s.spawn(|| simrod(p, &["compare", "good.csv", "--json"]))).collect();
+        for r in runs {
+            let o = r.join().unwrap();
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        }
+    });
+    let history = std::fs::read_to_string(p.join("good.simrod-history.jsonl")).unwrap();
+    assert_eq!(history.lines().count(), 16);
+    for line in history.lines() {
+        serde_json::from_str::<serde_json::Value>(line).expect("a whole JSON record");
+    }
+    std::thread::scope(|s| {
+        let runs: Vec<_> = (0..4u32)
+            .map(|k| {
+                let seed = k.to_string();
+                s.spawn(move || {
+                    simrod(p, &["bench", "--profile", "TP12", "--seed", &seed, "-q", "--out", "same.csv"])
+                })
+            })
+            .collect();
+        for r in runs {
+            let o = r.join().unwrap();
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        }
+    });
+    let o = simrod(p, &["compare", "same.csv", "--no-history", "--json"]);
+    assert!(o.status.success(), "the last bench's file is whole: {}", String::from_utf8_lossy(&o.stderr));
+    let left: Vec<String> = std::fs::read_dir(p)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "temporary files left behind: {left:?}");
+}
