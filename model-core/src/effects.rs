@@ -40,54 +40,31 @@ pub struct GearBacklash {
 /// well beyond the lag the thesis saw (6.1); sized so the firmware fits in 8 KiB of RAM.
 pub const DELAY_CAPACITY: usize = 256;
 
-/// The values a parameter accepts: finite, within optional bounds, and checked only
-/// while a sibling parameter is non-zero (a parameter that means nothing while its
-/// effect is off, such as a time constant).
+/// The values a parameter accepts: finite and within its bounds. Every twin parameter
+/// is bounded on both sides, so that no value makes the model non-physical.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Range {
-    /// Lower bound (`-inf`: none).
+    /// Lower bound.
     pub min: f32,
     /// Whether `min` itself is allowed.
     pub min_inclusive: bool,
-    /// Upper bound (`+inf`: none).
+    /// Upper bound.
     pub max: f32,
     /// Whether `max` itself is allowed.
     pub max_inclusive: bool,
-    /// Checked only while this parameter of the same effect is non-zero.
-    pub when_nonzero: Option<&'static str>,
 }
 
 impl Range {
-    /// Any finite value.
-    pub const FINITE: Self = Self {
-        min: f32::NEG_INFINITY,
-        min_inclusive: false,
-        max: f32::INFINITY,
-        max_inclusive: false,
-        when_nonzero: None,
-    };
-    /// Finite and `>= min`.
-    pub const fn at_least(min: f32) -> Self {
-        Self { min, min_inclusive: true, ..Self::FINITE }
-    }
-    /// Finite and `> min`.
-    pub const fn above(min: f32) -> Self {
-        Self { min, ..Self::FINITE }
-    }
     /// In `[min, max]`.
     pub const fn closed(min: f32, max: f32) -> Self {
-        Self { min, min_inclusive: true, max, max_inclusive: true, when_nonzero: None }
+        Self { min, min_inclusive: true, max, max_inclusive: true }
     }
     /// In `[min, max)`.
     pub const fn half_open(min: f32, max: f32) -> Self {
-        Self { min, min_inclusive: true, max, max_inclusive: false, when_nonzero: None }
-    }
-    /// Only checked while parameter `other` of the same effect is non-zero.
-    pub const fn when_nonzero(self, other: &'static str) -> Self {
-        Self { when_nonzero: Some(other), ..self }
+        Self { min, min_inclusive: true, max, max_inclusive: false }
     }
 
-    /// Whether `v` is in range (the `when_nonzero` condition is the caller's).
+    /// Whether `v` is in range.
     pub fn contains(&self, v: f32) -> bool {
         let lo = v > self.min || (self.min_inclusive && v == self.min);
         let hi = v < self.max || (self.max_inclusive && v == self.max);
@@ -97,28 +74,14 @@ impl Range {
 
 impl fmt::Display for Range {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let (has_min, has_max) = (self.min > f32::NEG_INFINITY, self.max < f32::INFINITY);
-        match (has_min, has_max) {
-            (false, false) => f.write_str("finite")?,
-            (true, false) => {
-                write!(f, "finite and {} {}", if self.min_inclusive { ">=" } else { ">" }, self.min)?
-            }
-            (false, true) => {
-                write!(f, "finite and {} {}", if self.max_inclusive { "<=" } else { "<" }, self.max)?
-            }
-            (true, true) => write!(
-                f,
-                "in {}{}, {}{}",
-                if self.min_inclusive { '[' } else { '(' },
-                self.min,
-                self.max,
-                if self.max_inclusive { ']' } else { ')' }
-            )?,
-        }
-        if let Some(other) = self.when_nonzero {
-            write!(f, " when {other} is not 0")?;
-        }
-        Ok(())
+        write!(
+            f,
+            "in {}{}, {}{}",
+            if self.min_inclusive { '[' } else { '(' },
+            self.min,
+            self.max,
+            if self.max_inclusive { ']' } else { ')' }
+        )
     }
 }
 
@@ -601,11 +564,7 @@ impl Effects {
             for p in e.params {
                 // An unset override keeps the model's value, checked with the model.
                 let Ok(Some(v)) = self.get(e.id, p.name) else { continue };
-                let applies = match p.range.when_nonzero {
-                    Some(other) => self.get(e.id, other).ok().flatten().is_some_and(|o| o != 0.0),
-                    None => true,
-                };
-                if applies && !p.range.contains(v) {
+                if !p.range.contains(v) {
                     return Err(Invalid { effect: e, param: p, value: v });
                 }
             }

@@ -465,7 +465,7 @@ impl<'a> Model<'a> {
         };
         let mut v_b = v_s;
         if fx.supply_resistance > 0.0 {
-            v_b = busbar_voltage(v_s, fx.supply_resistance, s.v_b, p_sut, &draw);
+            v_b = busbar_voltage(v_s, fx.supply_resistance, s.v_b, p_sut, draw);
             s.v_b = v_b;
         }
         let (sol, i_ld) = draw(v_b);
@@ -580,7 +580,7 @@ fn busbar_voltage(
     r_s: f32,
     v_last: f32,
     p_sut: f32,
-    draw: &dyn Fn(f32) -> ((f32, f32, f32), [f32; 2]),
+    draw: impl Fn(f32) -> ((f32, f32, f32), [f32; 2]),
 ) -> f32 {
     let mut v = if v_last > 0.0 { v_last } else { v_s };
     for _ in 0..8 {

@@ -89,9 +89,7 @@ fn declarations_are_consistent() {
         }
         for d in e.params {
             let neutral = d.neutral(e.id, &p);
-            if d.range.when_nonzero.is_none() {
-                assert!(d.range.contains(neutral), "{}.{}: neutral {neutral} refused", e.id, d.name);
-            }
+            assert!(d.range.contains(neutral), "{}.{}: neutral {neutral} refused", e.id, d.name);
             assert_eq!(d.model.is_some(), Effects::NONE.get(e.id, d.name) == Ok(None), "{}.{}", e.id, d.name);
             if let Some(f) = d.fit {
                 let (lo, hi) = (f.lower as f32, f.upper as f32);

@@ -18,7 +18,7 @@ use crate::simulate::{check_delay, RunSpec, SimulateArgs};
 use crate::twin::args::file_error;
 use crate::vbench::bench::{BenchRun, PlantKind};
 use crate::vbench::bench_effects::{load_bench_effects, BenchEffects};
-use crate::vbench::chain::ChainOptions;
+use crate::vbench::chain::{ChainOptions, Recorded};
 use crate::vbench::noise::NoiseModel;
 use crate::vbench::perturb::{perturb, summary, Uncertainty};
 use crate::vbench::scenario::{moved_channels, Scenario, Truth, TruthChange};
@@ -163,39 +163,28 @@ fn spec_and_effects(args: &BenchArgs, run: &SimulateArgs) -> Result<(RunSpec, Be
     Ok((spec, fx))
 }
 
-/// The bench's data: the run's, perturbed with `seed` when asked.
-fn bench_data(spec: &mut RunSpec, run: &SimulateArgs, seed: Option<u64>) -> Result<(), CmdError> {
-    let Some(seed) = seed else { return Ok(()) };
+/// The bench's data: the run's, perturbed with `seed` when asked; what the
+/// perturbation changed (empty without one), for a scenario's truth.
+fn bench_data(
+    spec: &mut RunSpec,
+    run: &SimulateArgs,
+    seed: Option<u64>,
+) -> Result<Vec<TruthChange>, CmdError> {
+    let Some(seed) = seed else { return Ok(Vec::new()) };
     let base = match &spec.data {
         Some(d) => d.as_ref().clone(),
         None => ModelData::builtin().map_err(|e| CmdError::Runtime(format!("built-in data: {e}")))?,
     };
     let p = perturb(&base, seed, &Uncertainty::thesis());
+    let changes = summary(&base, &p)
+        .items
+        .into_iter()
+        .filter(|i| i.rms > 0.0)
+        .map(|i| TruthChange { name: i.name, unit: i.unit.to_owned(), rms: i.rms, max_abs: i.max_abs })
+        .collect();
     spec.config.params = p.params(run.model.params.into(), run.model.coupling.into());
     spec.data = Some(Arc::new(p));
-    Ok(())
-}
-
-/// The run `spec` with `fx` on the chosen plant.
-fn bench_run<'a>(
-    args: &BenchArgs,
-    spec: &'a RunSpec,
-    maps: Maps<'a>,
-    fx: &'a BenchEffects,
-    chain: ChainOptions,
-) -> BenchRun<'a> {
-    BenchRun {
-        plant: args.plant.into(),
-        params: spec.config.params,
-        maps,
-        speed_target: spec.config.speed_target,
-        profile: &spec.profile,
-        supply_v: spec.supply_v,
-        dt_us: spec.config.dt_us,
-        effects: fx,
-        chain,
-        pulses: args.pulses,
-    }
+    Ok(changes)
 }
 
 /// The simulate arguments of a scenario: its profile and scales, no effect file.
@@ -219,28 +208,23 @@ fn scenario_args(args: &BenchArgs, s: &Scenario) -> Result<SimulateArgs, CmdErro
     Ok(run)
 }
 
-/// The truth of scenario `s` run as `run`: what each effect moves (exact runs with and
-/// without it) and what the perturbation changed.
-fn scenario_truth(s: &Scenario, run: &BenchRun<'_>, base: Option<&ModelData>) -> Result<String, CmdError> {
-    let all = run.exact().map_err(CmdError::Runtime)?;
+/// The truth of scenario `s` run as `run`, whose exact channels are `all`: what each
+/// effect moves (against an exact run without it) and what the perturbation changed.
+fn scenario_truth(
+    s: &Scenario,
+    run: &BenchRun<'_>,
+    all: &Recorded,
+    perturbation: Vec<TruthChange>,
+) -> Result<String, CmdError> {
+    let mut with = all.clone();
+    run.effects.daq.apply_before_noise(&mut with);
     let mut moves = Vec::with_capacity(s.picks.len());
     for i in 0..s.picks.len() {
-        let mut with = all.clone();
         let without_fx = s.effects_without(i);
         let mut without = BenchRun { effects: &without_fx, ..*run }.exact().map_err(CmdError::Runtime)?;
-        run.effects.daq.apply_before_noise(&mut with);
         without_fx.daq.apply_before_noise(&mut without);
         moves.push(moved_channels(&with, &without));
     }
-    let perturbation = match (base, s.perturb_maps) {
-        (Some(b), Some(seed)) => summary(b, &perturb(b, seed, &Uncertainty::thesis()))
-            .items
-            .into_iter()
-            .filter(|i| i.rms > 0.0)
-            .map(|i| TruthChange { name: i.name, unit: i.unit.to_owned(), rms: i.rms, max_abs: i.max_abs })
-            .collect(),
-        _ => Vec::new(),
-    };
     Truth::new(s, moves, perturbation).to_toml().map_err(CmdError::Runtime)
 }
 
@@ -269,26 +253,30 @@ pub fn bench(args: &BenchArgs) -> Result<Benched, CmdError> {
         }
         None => spec_and_effects(args, &run_args)?,
     };
-    let base = spec.data.clone();
     let perturb_seed = scenario.as_ref().map_or(args.perturb_maps, |s| s.perturb_maps);
-    bench_data(&mut spec, &run_args, perturb_seed)?;
+    let perturbation = bench_data(&mut spec, &run_args, perturb_seed)?;
     let maps = match &spec.data {
         Some(d) => d.maps().map_err(|e| CmdError::Usage(format!("--data-dir: {e}")))?,
         None => Maps::builtin(),
     };
-    let run = bench_run(args, &spec, maps, &fx, args.chain()?);
-    let measurement = run.measure(&args.run.out).map_err(CmdError::Runtime)?;
+    let run = BenchRun {
+        plant: args.plant.into(),
+        params: spec.config.params,
+        maps,
+        speed_target: spec.config.speed_target,
+        profile: &spec.profile,
+        supply_v: spec.supply_v,
+        dt_us: spec.config.dt_us,
+        effects: &fx,
+        chain: args.chain()?,
+        pulses: args.pulses,
+    };
+    let exact = run.exact().map_err(CmdError::Runtime)?;
     let truth = match &scenario {
-        Some(s) => {
-            let base_data = match &base {
-                Some(d) => d.as_ref().clone(),
-                None => ModelData::builtin().map_err(|e| CmdError::Runtime(format!("built-in data: {e}")))?,
-            };
-            let text = scenario_truth(s, &run, Some(&base_data))?;
-            Some((truth_path(args), text))
-        }
+        Some(s) => Some((truth_path(args), scenario_truth(s, &run, &exact, perturbation)?)),
         None => None,
     };
+    let measurement = run.record(exact, &args.run.out);
     Ok(Benched { measurement, truth })
 }
 

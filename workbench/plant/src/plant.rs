@@ -45,29 +45,22 @@ const SEPARATION_NM: f64 = 0.05;
 /// Lowest friction factor of a fully warmed gearbox.
 const WARM_FLOOR: f64 = 0.2;
 
+/// Channels the plant gives beyond the measured ones: the derived powers (thesis table
+/// 5.13) and the speed command.
+const DERIVED: [Channel; 5] =
+    [Channel::PSutInv, Channel::PLml, Channel::PLmr, Channel::PDpu, Channel::SpeedCmd];
+
 /// The channels the plant produces, in the order of [`Sample::values`]: the measured
-/// channels, the derived powers and the speed command.
-pub const CHANNELS: [Channel; 19] = [
-    Channel::Throttle,
-    Channel::SuTMotorEnc,
-    Channel::CKistlerL,
-    Channel::CKistlerR,
-    Channel::TKistlerL,
-    Channel::TKistlerR,
-    Channel::SiemensEnc,
-    Channel::IXlml22,
-    Channel::IXlmlBu1,
-    Channel::IXlmr23,
-    Channel::IDpu27,
-    Channel::VDcBusbars,
-    Channel::IDc,
-    Channel::VDc,
-    Channel::PSutInv,
-    Channel::PLml,
-    Channel::PLmr,
-    Channel::PDpu,
-    Channel::SpeedCmd,
-];
+/// channels (`MEASURED`, in its order), then [`DERIVED`].
+pub const CHANNELS: [Channel; MEASURED.len() + DERIVED.len()] = {
+    let mut out = [Channel::Throttle; MEASURED.len() + DERIVED.len()];
+    let mut i = 0;
+    while i < out.len() {
+        out[i] = if i < MEASURED.len() { MEASURED[i] } else { DERIVED[i - MEASURED.len()] };
+        i += 1;
+    }
+    out
+};
 
 /// One output sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -801,9 +794,4 @@ pub fn step_for(every_us: u64, max_ns: u64) -> u64 {
     let every_ns = every_us.max(1) * 1000;
     let parts = every_ns.div_ceil(max_ns.max(1));
     (parts..=every_ns).find(|p| every_ns.is_multiple_of(*p)).map_or(every_ns, |p| every_ns / p)
-}
-
-/// Position of each entry of `MEASURED` in [`CHANNELS`].
-pub fn measured_index() -> Vec<usize> {
-    MEASURED.iter().filter_map(|m| CHANNELS.iter().position(|c| c == m)).collect()
 }

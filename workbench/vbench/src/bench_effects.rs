@@ -103,19 +103,16 @@ pub fn parse_bench_effects(text: &str, origin: impl AsRef<Path>) -> Result<Bench
 /// effects that are on, then the bench-only ones, then the acquisition's.
 pub fn format_bench_effects(fx: &BenchEffects) -> Result<String, String> {
     let mut out = format_effects(&fx.library)?;
-    for (id, param, v) in fx.plant.entries() {
-        if !out.contains(&format!("\n[{id}]\n")) {
-            let _ = write!(out, "\n[{id}]\n");
-        }
-        let _ = writeln!(out, "{param} = {v:?}");
-    }
+    // Entries come grouped by effect, in declaration order: a header where the id changes.
+    let plant = fx.plant.entries().into_iter().map(|(id, p, v)| (id, p.to_owned(), v));
+    let daq = fx.daq.entries().into_iter().map(|(id, c, v)| (id, channel_key(c), v));
     let mut last = "";
-    for (id, channel, v) in fx.daq.entries() {
+    for (id, param, v) in plant.chain(daq) {
         if id != last {
             let _ = write!(out, "\n[{id}]\n");
             last = id;
         }
-        let _ = writeln!(out, "{} = {v:?}", channel_key(channel));
+        let _ = writeln!(out, "{param} = {v:?}");
     }
     Ok(out)
 }

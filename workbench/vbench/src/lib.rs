@@ -40,5 +40,4 @@ pub mod daq;
 pub mod encoder;
 pub mod noise;
 pub mod perturb;
-pub mod physics;
 pub mod scenario;
