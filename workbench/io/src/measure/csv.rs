@@ -24,14 +24,13 @@ use super::table::{RawColumn, RawTable, Rows};
 use super::units::factor_to;
 use crate::error::FileError;
 
-/// Read a CSV file into columns.
-pub(crate) fn read(path: &Path) -> Result<RawTable, FileError> {
-    let bytes = std::fs::read(path).map_err(|e| FileError::io(path, &e))?;
+/// Read CSV bytes (UTF-8, else Latin-1) into columns; `origin` names the file in errors.
+pub(crate) fn read_bytes(origin: &Path, bytes: Vec<u8>) -> Result<RawTable, FileError> {
     let text = match String::from_utf8(bytes) {
         Ok(s) => s,
         Err(e) => e.into_bytes().iter().map(|&b| char::from(b)).collect(),
     };
-    parse(path, text.strip_prefix('\u{feff}').unwrap_or(&text))
+    parse(origin, text.strip_prefix('\u{feff}').unwrap_or(&text))
 }
 
 /// Split `Name [unit]` / `Name (unit)` into name and unit (`None` when absent or empty).

@@ -50,12 +50,6 @@ fn bench_name(var: &str) -> Option<&'static str> {
         .find(|n| sanitize(n) == var)
 }
 
-/// Read a MAT file into columns.
-pub(crate) fn read(path: &Path) -> Result<RawTable, FileError> {
-    let bytes = std::fs::read(path).map_err(|e| FileError::io(path, &e))?;
-    parse(path, &bytes)
-}
-
 fn to_f64(d: &matfile::NumericData) -> Option<Vec<f64>> {
     use matfile::NumericData as N;
     fn conv<T: Copy + Into<f64>>(r: &[T], i: &Option<Vec<T>>) -> Option<Vec<f64>> {

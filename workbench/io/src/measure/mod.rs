@@ -84,15 +84,34 @@ pub fn load(path: &Path, mapping: Option<&Path>) -> Result<Measurement, MeasureE
 
 /// Load with explicit options; the format follows the extension.
 pub fn load_with(path: &Path, opts: &LoadOptions) -> Result<Loaded, MeasureError> {
-    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
-    let raw = match ext.as_str() {
-        "csv" | "txt" | "tsv" => csv::read(path)?,
-        "mat" => mat::read(path)?,
-        _ => {
-            return Err(MeasureError::whole(path, "unknown measurement format; expected a .csv or .mat file"))
-        }
+    format_of(path)?;
+    let bytes = std::fs::read(path).map_err(|e| MeasureError::io(path, &e))?;
+    parse_bytes(path, bytes, opts)
+}
+
+/// A file's contents, read as the reader its extension names (`path` is only named in
+/// messages): the whole pipeline of [`load_with`] without the file system, for callers
+/// that hold the bytes (the fuzz targets).
+pub fn parse_bytes(path: &Path, bytes: Vec<u8>, opts: &LoadOptions) -> Result<Loaded, MeasureError> {
+    let raw = match format_of(path)? {
+        Format::Csv => csv::read_bytes(path, bytes)?,
+        Format::Mat => mat::parse(path, &bytes)?,
     };
     table::finish(raw, opts)
+}
+
+enum Format {
+    Csv,
+    Mat,
+}
+
+fn format_of(path: &Path) -> Result<Format, MeasureError> {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    match ext.as_str() {
+        "csv" | "txt" | "tsv" => Ok(Format::Csv),
+        "mat" => Ok(Format::Mat),
+        _ => Err(MeasureError::whole(path, "unknown measurement format; expected a .csv or .mat file")),
+    }
 }
 
 /// One channel of a measured run.
