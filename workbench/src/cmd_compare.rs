@@ -14,14 +14,15 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use clap::Args;
-use model_core::{Builtin, Effects};
+use model_core::Builtin;
 
-use crate::compare::{compare, CompareOptions, CompareResult, InputSource};
+use crate::compare::{compare_prepared, CompareError, CompareOptions, CompareResult, InputSource};
 use crate::effects_file::load_effects;
 use crate::error::CmdError;
 use crate::history::{self, Entry};
 use crate::iterate;
-use crate::measure::{self, LoadOptions, Mapping};
+use crate::measure::{self, LoadOptions, Loaded, Mapping};
+use crate::twin::MeasuredTwin;
 use crate::report::{html, json, table};
 use crate::simulate::{parse_builtin, parse_scale};
 use crate::twin::args::{ModelArgs, SensorArgs};
@@ -186,14 +187,13 @@ pub fn run(args: &CompareArgs) -> Result<Compared, CmdError> {
         None => InputSource::Recorded,
     };
     let opts = CompareOptions { model, inputs, window_s: args.window_s, ..CompareOptions::default() };
-    let mut result = compare(&loaded.measurement, &opts)
-        .map_err(|e| CmdError::Usage(format!("{}: {e}", args.meas.display())))?;
-    let mut notes: Vec<String> = loaded.notes.clone();
-    if let Some(p) = &args.model.effects {
-        notes.push(format!("twin effects from {}", p.display()));
-    }
-    notes.append(&mut result.notes);
-    result.notes = notes;
+    let usage = |e: CompareError| CmdError::Usage(format!("{}: {e}", args.meas.display()));
+    let twin = MeasuredTwin::new(&loaded.measurement, &opts.model, &opts.inputs).map_err(usage)?;
+    // The file's values are on the twin's grid now: drop the measurement, so a long run
+    // is held once.
+    let Loaded { measurement, notes: mut load_notes, .. } = loaded;
+    let source = measurement.source.clone();
+    drop(measurement);
 
     // The history: read before appending (the previous record is the report's baseline).
     let hist_path = history::path_for(&args.meas);
@@ -207,6 +207,19 @@ pub fn run(args: &CompareArgs) -> Result<Compared, CmdError> {
         (Some(fx), Some(p)) => Some((fx, format!("--baseline-effects {}", p.display()))),
         _ => iterate::previous_effects(&past, &effects),
     };
+    let baseline = match (&args.report, before) {
+        (Some(_), Some((fx, origin))) => Some(
+            iterate::baseline(&twin, &opts, fx, origin)
+                .map_err(|e| CmdError::Runtime(format!("baseline run: {e}")))?,
+        ),
+        _ => None,
+    };
+
+    let mut result = compare_prepared(twin, &source, &opts).map_err(usage)?;
+    load_notes.extend(args.model.effects.as_ref().map(|p| format!("twin effects from {}", p.display())));
+    load_notes.append(&mut result.notes);
+    result.notes = load_notes;
+
     let mut rec = iterate::options_rec(&opts, &result, args.mapping.as_deref(), args.allow_gaps);
     rec.data_dir = args.model.data_dir.as_ref().map(|p| p.display().to_string());
     let entry = Entry::new(&result, &args.meas, &effects, args.model.effects.as_deref(), rec);
@@ -215,7 +228,7 @@ pub fn run(args: &CompareArgs) -> Result<Compared, CmdError> {
         past.entries.push(entry.clone());
     }
     let report = match &args.report {
-        Some(dir) => Some(write_report(dir, &loaded.measurement, &opts, &result, before, &past, &hist_path)?),
+        Some(dir) => Some(write_report(dir, &result, baseline, &past, &hist_path)?),
         None => None,
     };
     let mut recorded = None;
@@ -228,21 +241,15 @@ pub fn run(args: &CompareArgs) -> Result<Compared, CmdError> {
     Ok(Compared { result, history: recorded, report, warnings })
 }
 
-/// The report with its extras: the before/after overlay against `before` (effects and
-/// where they came from) and the history section.
+/// The report with its extras: the before/after overlay (the run with the previous
+/// effects) and the history section.
 fn write_report(
     dir: &Path,
-    meas: &measure::Measurement,
-    opts: &CompareOptions,
     result: &CompareResult,
-    before: Option<(Effects, String)>,
+    baseline: Option<html::Baseline>,
     past: &history::History,
     hist_path: &Path,
 ) -> Result<PathBuf, CmdError> {
-    let baseline = before
-        .map(|(fx, origin)| iterate::baseline(meas, opts, fx, origin))
-        .transpose()
-        .map_err(|e| CmdError::Runtime(format!("baseline run: {e}")))?;
     let extras = html::Extras {
         baseline,
         history: (!past.entries.is_empty()).then(|| iterate::history_view(hist_path, &past.entries)),

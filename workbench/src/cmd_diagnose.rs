@@ -183,15 +183,17 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
             "{src}: the run has samples flagged in its `{GAP_CHANNEL}` column; diagnose fits every sample, so cut the run at the gap"
         )));
     }
-    let twin = MeasuredTwin::new(meas, &model, &InputSource::Recorded)
+    let mut twin = MeasuredTwin::new(meas, &model, &InputSource::Recorded)
         .map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
     check_delay(&base, twin.grid.dt_us).map_err(|m| {
         CmdError::Usage(format!("{}: {m}", args.model.effects.as_deref().unwrap_or(Path::new("")).display()))
     })?;
-    let al = twin.align(base).map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
-    let fitted = fitted_series(&al, &src)?;
+    // A long run is held once: the file's values live on in the pairs only, and the
+    // twin keeps what it needs to run (set points, grid).
+    let load_notes = loaded.notes;
+    drop(loaded.measurement);
+    let al = twin.align_taking(base).map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
 
-    let probe = BuiltinProbe::standard(model.clone(), fitted.channels.clone());
     let limits = regions::Limits::of_model(&model).map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
     let mut o = Options {
         base,
@@ -206,13 +208,15 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
     let (step_note, samples, dt_us) = (al.grid.step_note.clone(), al.grid.time_s.len(), al.grid.dt_us);
     let data_notes = al.grid.data_notes.clone();
     let duration_s = al.grid.duration_s();
+    let fitted = fitted_series(al, &src)?;
+    let probe = BuiltinProbe::standard(model.clone(), fitted.channels.clone());
     let recorded = RecordedTwin { twin, channels: fitted.channels.clone() };
     let t1 = Instant::now();
     let diagnosis = diagnose::diagnose(&recorded, &fitted.series, &o, Some(&probe))
         .map_err(|e| CmdError::Runtime(format!("{src}: diagnosis failed: {e}")))?;
     let t2 = Instant::now();
 
-    let mut notes = loaded.notes.clone();
+    let mut notes = load_notes;
     notes.push(step_note.clone());
     notes.extend(data_notes);
     if !fitted.missing.is_empty() {
@@ -244,11 +248,11 @@ struct Fitted {
     missing: Vec<&'static str>,
 }
 
-/// The fitted channels of an aligned run; every sample must be finite.
-fn fitted_series(al: &Aligned, src: &str) -> Result<Fitted, CmdError> {
+/// The fitted channels of an aligned run (moved out of it); every sample must be finite.
+fn fitted_series(mut al: Aligned, src: &str) -> Result<Fitted, CmdError> {
     let mut f = Fitted { channels: Vec::new(), series: Vec::new(), missing: Vec::new() };
     for c in fitted_channels() {
-        let Some(p) = al.channels.iter().find(|p| !p.derived && p.name == c.name()) else {
+        let Some(p) = al.channels.iter_mut().find(|p| !p.derived && p.name == c.name()) else {
             f.missing.push(c.name());
             continue;
         };
@@ -260,7 +264,7 @@ fn fitted_series(al: &Aligned, src: &str) -> Result<Fitted, CmdError> {
             )));
         }
         f.channels.push(c);
-        f.series.push(p.meas.clone());
+        f.series.push(std::mem::take(&mut p.meas));
     }
     if f.channels.len() < MIN_CHANNELS {
         return Err(CmdError::Usage(format!(

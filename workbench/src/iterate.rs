@@ -8,7 +8,6 @@ use model_core::{CouplingStiffness, Effects, RateSet, SpeedTarget};
 
 use crate::compare::{metrics, CompareError, CompareOptions, CompareResult};
 use crate::history::{self, Entry, History, OptionsRec};
-use crate::measure::Measurement;
 use crate::report::html::{Baseline, BaselineChannel, HistoryRow, HistoryView};
 use crate::twin::MeasuredTwin;
 
@@ -56,12 +55,12 @@ pub fn previous_effects(h: &History, now: &Effects) -> Option<(Effects, String)>
 /// The run simulated with `effects` instead of the compared ones, paired with the same
 /// measured samples (gaps left out as in the comparison).
 pub fn baseline(
-    meas: &Measurement,
+    twin: &MeasuredTwin,
     opts: &CompareOptions,
     effects: Effects,
     origin: String,
 ) -> Result<Baseline, CompareError> {
-    let al = MeasuredTwin::new(meas, &opts.model, &opts.inputs)?.align(effects)?;
+    let al = twin.align(effects)?;
     let channels = al
         .channels
         .iter()

@@ -86,7 +86,7 @@ fn compare_and_diagnose_see_the_same_twin() {
     for (ch, s) in twin.channels().iter().zip(&sim) {
         let c = r.channel(ch.name()).unwrap();
         let m = &meas.signal(ch.name()).unwrap().values;
-        for (k, (s, e)) in s.iter().zip(&c.residual).enumerate() {
+        for (k, (s, e)) in s.iter().zip(&c.residual()).enumerate() {
             let want = if (m[k] as f32) == *s { 0.0 } else { f64::from(*s) - m[k] };
             assert_eq!(e.to_bits(), want.to_bits(), "{} at sample {k}", ch.name());
         }

@@ -17,9 +17,10 @@ pub mod spans;
 #[cfg(test)]
 mod tests;
 
+use std::path::Path;
 use std::time::Instant;
 
-use model_core::{RateSet, SpeedTarget, MEASURED};
+use model_core::{Channel, RateSet, SpeedTarget, MEASURED};
 
 use budget::RegionShare;
 use metrics::Metrics;
@@ -71,10 +72,9 @@ pub struct ChannelResult {
     pub unit: String,
     /// Computed from measured channels (P_DPU, P_SuT_inv, P_LML, P_LMR).
     pub derived: bool,
+    /// Measured values; NaN inside gaps interpolated across (`--allow-gaps`).
     pub meas: Vec<f64>,
     pub sim: Vec<f64>,
-    /// `sim − meas`, NaN where either is not finite.
-    pub residual: Vec<f64>,
     pub metrics: Metrics,
     /// Every region's share of this channel's squared error.
     pub budget: Vec<RegionShare>,
@@ -86,6 +86,12 @@ pub struct ChannelResult {
 }
 
 impl ChannelResult {
+    /// `sim − meas`, NaN where either is not finite (inside gaps too). Computed when
+    /// asked, not stored: a long run's residuals would double what a result holds.
+    pub fn residual(&self) -> Vec<f64> {
+        metrics::residual(&self.meas, &self.sim)
+    }
+
     /// The residual has structure a model could explain (not white, not negligible).
     pub fn structured(&self) -> bool {
         self.whiteness.verdict == residual::Verdict::Coloured
@@ -157,13 +163,33 @@ fn within_resolution(opts: &CompareOptions, name: &str, rmse: f64) -> bool {
         .is_some_and(|q| rmse <= RESOLUTION_MARGIN * q)
 }
 
+/// Samples inside gaps are not measurements: NaN, as the residual has them.
+fn mask_gaps(meas: &mut [f64], gaps: &[bool]) {
+    for (m, gap) in meas.iter_mut().zip(gaps) {
+        if *gap {
+            *m = f64::NAN;
+        }
+    }
+}
+
 /// Compare a measured run with the twin.
 pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResult, CompareError> {
+    compare_prepared(MeasuredTwin::new(meas, &opts.model, &opts.inputs)?, &meas.source, opts)
+}
+
+/// Compare a run already put on the twin's grid (from the file `source`): the caller may
+/// drop the measurement first, so a long run is not held twice.
+pub fn compare_prepared(
+    twin: MeasuredTwin,
+    source: &Path,
+    opts: &CompareOptions,
+) -> Result<CompareResult, CompareError> {
     if !(opts.window_s.is_finite() && opts.window_s > 0.0) {
         return Err(CompareError::Window);
     }
     let t0 = Instant::now();
-    let al = MeasuredTwin::new(meas, &opts.model, &opts.inputs)?.align(opts.model.effects)?;
+    let present: Vec<Channel> = twin.measured.iter().map(|(c, _)| *c).collect();
+    let al = twin.into_aligned(opts.model.effects)?;
     if al.channels.is_empty() {
         return Err(CompareError::NoChannels);
     }
@@ -177,45 +203,49 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
     // Inputs for the cross-correlation: the set points (the correlator adds their
     // step-to-step change: the change at row k drove the step ending at row k).
     let names = ["SuT Throttle", "Dm Left", "Dm Right"];
-    let xin: Vec<(String, Vec<f64>)> =
-        names.iter().zip(&al.grid.set_points).map(|(name, u)| ((*name).to_string(), u.clone())).collect();
+    let xin: Vec<(&str, &[f64])> = names.iter().zip(&al.grid.set_points).map(|(n, u)| (*n, u.as_slice())).collect();
     let max_lag = (opts.max_lag_s / dt_s).round().max(0.0) as usize;
     let mut corr = residual::Correlator::new(&xin, n, dt_s, max_lag, opts.whiteness_lags);
     let window = ((opts.window_s / dt_s).round() as usize).max(1);
 
-    let mut partial: Vec<(Paired, Vec<f64>, Metrics)> = al
-        .channels
-        .iter()
-        .map(|p| {
-            let (e, m) = metrics::paired(p, &al.grid.time_s, &al.grid.gaps);
-            (p.clone(), e, m)
-        })
-        .collect();
-    let refs: Vec<(&[f64], f64)> = partial.iter().map(|(_, e, m)| (e.as_slice(), m.normaliser)).collect();
-    let stats = corr.analyse(&refs);
-    let mut channels = Vec::with_capacity(partial.len());
-    for ((p, e, m), st) in partial.drain(..).zip(stats) {
-        let b = budget::budget(&classes.classes, &e);
-        let top = budget::top_combined(&b, opts.top_regions);
-        let worst = spans::worst_spans(&al.grid.time_s, &e, window, opts.spans);
-        let mut whiteness = st.whiteness;
-        if whiteness.verdict == residual::Verdict::Coloured && within_resolution(opts, &p.name, m.rmse) {
-            whiteness.verdict = residual::Verdict::Resolution;
+    // Two channels at a time (the correlator shares FFTs by pairs): a long run's
+    // residuals are never all held at once.
+    let (time_s, gaps) = (&al.grid.time_s, &al.grid.gaps);
+    let mut channels = Vec::with_capacity(al.channels.len());
+    let mut pending = al.channels.into_iter();
+    while let Some(first) = pending.next() {
+        let pair: Vec<(Paired, Vec<f64>, Metrics)> = std::iter::once(first)
+            .chain(pending.next())
+            .map(|mut p| {
+                let (e, m) = metrics::paired(&p, time_s, gaps);
+                mask_gaps(&mut p.meas, gaps);
+                (p, e, m)
+            })
+            .collect();
+        let refs: Vec<(&[f64], f64)> = pair.iter().map(|(_, e, m)| (e.as_slice(), m.normaliser)).collect();
+        let stats = corr.analyse(&refs);
+        for ((p, e, m), st) in pair.into_iter().zip(stats) {
+            let b = budget::budget(&classes.classes, &e);
+            let top = budget::top_combined(&b, opts.top_regions);
+            let worst = spans::worst_spans(time_s, &e, window, opts.spans);
+            let mut whiteness = st.whiteness;
+            if whiteness.verdict == residual::Verdict::Coloured && within_resolution(opts, &p.name, m.rmse) {
+                whiteness.verdict = residual::Verdict::Resolution;
+            }
+            channels.push(ChannelResult {
+                name: p.name,
+                unit: p.unit,
+                derived: p.derived,
+                meas: p.meas,
+                sim: p.sim,
+                metrics: m,
+                budget: b,
+                top_regions: top,
+                worst_spans: worst,
+                whiteness,
+                cross: st.cross,
+            });
         }
-        channels.push(ChannelResult {
-            name: p.name,
-            unit: p.unit,
-            derived: p.derived,
-            meas: p.meas,
-            sim: p.sim,
-            residual: e,
-            metrics: m,
-            budget: b,
-            top_regions: top,
-            worst_spans: worst,
-            whiteness,
-            cross: st.cross,
-        });
     }
     let t2 = Instant::now();
 
@@ -226,8 +256,7 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
         notes.push(format!("{in_gaps} samples inside interpolated gaps are left out"));
     }
     notes.extend(classes.notes.iter().cloned());
-    let missing: Vec<&str> =
-        MEASURED.iter().map(|c| c.name()).filter(|name| meas.signal(name).is_none()).collect();
+    let missing: Vec<&str> = MEASURED.iter().filter(|c| !present.contains(c)).map(|c| c.name()).collect();
     if !missing.is_empty() {
         notes.push(format!("not in the file: {}", missing.join(", ")));
     }
@@ -239,7 +268,7 @@ pub fn compare(meas: &Measurement, opts: &CompareOptions) -> Result<CompareResul
     };
     Ok(CompareResult {
         setup: Setup {
-            source: meas.source.display().to_string(),
+            source: source.display().to_string(),
             dt_us: al.grid.dt_us,
             resampled: al.grid.resampled,
             step_note: al.grid.step_note.clone(),

@@ -195,7 +195,7 @@ pub struct Correlator {
 
 impl Correlator {
     /// `inputs`: name and samples (length `n`); lags in samples, capped at `n / 2`.
-    pub fn new(inputs: &[(String, Vec<f64>)], n: usize, dt_s: f64, max_lag: usize, acf_lags: usize) -> Self {
+    pub fn new(inputs: &[(&str, &[f64])], n: usize, dt_s: f64, max_lag: usize, acf_lags: usize) -> Self {
         let max_lag = max_lag.min(n / 2);
         let acf_lags = acf_lags.min(n / 2);
         // Linear (not circular) correlation for lags -(max_lag+1)..=max_lag+1.
@@ -215,15 +215,14 @@ impl Correlator {
             scratch: vec![Complex::default(); scratch_len],
             inputs: Vec::new(),
         };
-        let centred_inputs: Vec<(String, Vec<f64>)> =
-            inputs.iter().map(|(name, x)| (name.clone(), centred(x))).collect();
+        let centred_inputs: Vec<(&str, Vec<f64>)> = inputs.iter().map(|(name, x)| (*name, centred(x))).collect();
         for pair in centred_inputs.chunks(2) {
             let a = &pair[0];
             let b = pair.get(1);
             let (sa, sb) = me.spectra(&a.1, b.map(|b| b.1.as_slice()));
-            me.inputs.push(Input::new(&a.0, &a.1, sa));
+            me.inputs.push(Input::new(a.0, &a.1, sa));
             if let (Some(b), Some(sb)) = (b, sb) {
-                me.inputs.push(Input::new(&b.0, &b.1, sb));
+                me.inputs.push(Input::new(b.0, &b.1, sb));
             }
         }
         me
@@ -327,35 +326,31 @@ impl Correlator {
 
         // Correlations: the residual with itself, then with every input; two per
         // inverse FFT. Only the lags in range are kept.
-        let m = self.m;
-        let lag = |r: &[f64], l: i64| -> f64 {
-            let idx = if l >= 0 { l as usize } else { m - l.unsigned_abs() as usize };
-            r.get(idx).copied().unwrap_or(0.0)
-        };
         // Jobs: e with itself, e with every input, e² with itself (for the band).
         let mut jobs: Vec<Job<'_>> = vec![(spec, spec)];
         jobs.extend(self.inputs.iter().map(|i| (spec, i.spec.as_slice())));
         jobs.push((sq, sq));
-        let mut corr: Vec<Vec<f64>> = Vec::with_capacity(jobs.len());
-        let mut buf = Vec::with_capacity(m);
+        let mut corr: Vec<Lags> = Vec::with_capacity(jobs.len());
+        let mut buf = Vec::with_capacity(self.m);
+        let read = self.max_lag.max(self.acf_lags) + 2;
         for pair in jobs.chunks(2) {
             Self::correlations(self.inv.as_ref(), &mut self.scratch, pair[0], pair.get(1).copied(), &mut buf);
-            corr.push(buf.iter().map(|c| c.re).collect());
+            corr.push(Lags::keep(&buf, read, |c| c.re));
             if pair.len() > 1 {
-                corr.push(buf.iter().map(|c| c.im).collect());
+                corr.push(Lags::keep(&buf, read, |c| c.im));
             }
         }
 
-        let acf_raw = corr.first().map(Vec::as_slice).unwrap_or(&[]);
-        let r0 = acf_raw.first().copied().unwrap_or(0.0);
-        let acf: Vec<f64> = (1..=self.acf_lags)
-            .map(|l| if r0 > 0.0 { acf_raw.get(l).copied().unwrap_or(0.0) / r0 } else { 0.0 })
-            .collect();
+        let none = Lags::default();
+        let acf_raw = corr.first().unwrap_or(&none);
+        let r0 = acf_raw.at(0);
+        let acf: Vec<f64> =
+            (1..=self.acf_lags as i64).map(|l| if r0 > 0.0 { acf_raw.at(l) / r0 } else { 0.0 }).collect();
         // Per-lag band from Σ e_k² e_{k+l}² (the autocorrelation of e² at lag l).
-        let sq_acf = corr.last().map(Vec::as_slice).unwrap_or(&[]);
-        let bands: Vec<f64> = (1..=self.acf_lags)
+        let sq_acf = corr.last().unwrap_or(&none);
+        let bands: Vec<f64> = (1..=self.acf_lags as i64)
             .map(|l| {
-                let v = sq_acf.get(l).copied().unwrap_or(0.0).max(0.0);
+                let v = sq_acf.at(l).max(0.0);
                 if ee > 0.0 {
                     1.96 * v.sqrt() / ee
                 } else {
@@ -447,14 +442,35 @@ impl Correlator {
         // (`corr` ends with the e² autocorrelation: the zip stops at the inputs.)
         for (inp, r) in self.inputs.iter().zip(corr.iter().skip(1)) {
             let norm = (ee * inp.energy).sqrt();
-            plain.push(peak_of(inp.name.clone(), norm, &inp.u2, inp.energy, &|l| lag(r, l)));
+            plain.push(peak_of(inp.name.clone(), norm, &inp.u2, inp.energy, &|l| r.at(l)));
             let norm_d = (ee * inp.energy_d).sqrt();
             diffs.push(peak_of(format!("d/dt {}", inp.name), norm_d, &inp.du2, inp.energy_d, &|l| {
-                lag(r, l) - lag(r, l + 1) - e_at(l) * inp.first + e_at(ne + l) * inp.last
+                r.at(l) - r.at(l + 1) - e_at(l) * inp.first + e_at(ne + l) * inp.last
             }));
         }
         plain.extend(diffs);
         ResidualStats { whiteness, cross: plain }
+    }
+}
+
+/// The lags of a correlation that are read, `0..k` and `−k..−1`, out of the `m` values
+/// of its inverse FFT (circular layout): a long run's `m` is millions, `k` a few hundred.
+#[derive(Default)]
+struct Lags {
+    head: Vec<f64>,
+    tail: Vec<f64>,
+}
+
+impl Lags {
+    fn keep(buf: &[Complex<f64>], k: usize, part: fn(&Complex<f64>) -> f64) -> Self {
+        let k = k.min(buf.len());
+        Self { head: buf[..k].iter().map(part).collect(), tail: buf[buf.len() - k..].iter().map(part).collect() }
+    }
+
+    /// The correlation at lag `l` (0 beyond the kept lags).
+    fn at(&self, l: i64) -> f64 {
+        let (v, i) = if l >= 0 { (&self.head, l) } else { (&self.tail, self.tail.len() as i64 + l) };
+        usize::try_from(i).ok().and_then(|i| v.get(i)).copied().unwrap_or(0.0)
     }
 }
 
@@ -529,11 +545,7 @@ mod tests {
         let v = noise(n, 3);
         // A step input: its difference is one impulse, the residual a delayed step.
         let step: Vec<f64> = (0..n).map(|k| if k >= 1000 { 1.0 } else { 0.0 }).collect();
-        let inputs = vec![
-            ("u".to_string(), u.clone()),
-            ("v".to_string(), v.clone()),
-            ("step".to_string(), step.clone()),
-        ];
+        let inputs: Vec<(&str, &[f64])> = vec![("u", &u), ("v", &v), ("step", &step)];
         let mut c = Correlator::new(&inputs, n, 1e-3, 100, 50);
         let two = c.analyse(&[(&e, 1.0), (&w, 1.0)]);
         let s = &two[0];
@@ -595,7 +607,7 @@ mod tests {
         let w = noise(n, 5);
         let e: Vec<f64> =
             w.iter().enumerate().map(|(k, v)| if k % 2000 < 100 { 10.0 * v } else { *v }).collect();
-        let mut c = Correlator::new(&[("u".to_string(), noise(n, 8))], n, 1e-3, 10, 200);
+        let mut c = Correlator::new(&[("u", &noise(n, 8))], n, 1e-3, 10, 200);
         let r = c.analyse(&[(&e, 1.0)]);
         assert_eq!(r[0].whiteness.verdict, Verdict::White, "{:?}", r[0].whiteness.fraction_outside);
         // Wider than the steady-noise band (where two loud samples meet, lags < 100).
@@ -619,7 +631,7 @@ mod tests {
         let n = 5000;
         let w = noise(n, 11);
         let e: Vec<f64> = w.iter().map(|v| 0.1 * v + 0.05).collect();
-        let mut c = Correlator::new(&[("u".to_string(), noise(n, 2))], n, 1e-3, 10, 50);
+        let mut c = Correlator::new(&[("u", &noise(n, 2))], n, 1e-3, 10, 50);
         let r = c.analyse(&[(&e, 1.0), (&w, 1.0)]);
         assert!(r[0].whiteness.bias_significant);
         assert_eq!(r[0].whiteness.verdict, Verdict::Coloured);
@@ -633,7 +645,8 @@ mod tests {
     #[test]
     fn zero_residual_is_negligible() {
         let n = 500;
-        let inputs = vec![("u".to_string(), noise(n, 1))];
+        let u = noise(n, 1);
+        let inputs: Vec<(&str, &[f64])> = vec![("u", &u)];
         let mut c = Correlator::new(&inputs, n, 1e-3, 10, 10);
         let z = vec![0.0; n];
         let r = c.analyse(&[(&z, 1.0)]);

@@ -40,6 +40,20 @@ pub trait Twin: Sync {
     fn dt_s(&self) -> f64;
     /// Simulated `[channel][sample]`.
     fn run(&self, fx: &Effects) -> Result<Vec<Vec<f32>>, String>;
+
+    /// Every `stride`-th sample of [`Twin::run`] (from the first): what the fits read.
+    /// A long run's full output is then held only while it is reduced.
+    fn run_every(&self, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
+        Ok(self.run(fx)?.into_iter().map(|c| every(c, stride)).collect())
+    }
+}
+
+/// Every `stride`-th value of `v`, from the first (`v` itself for a stride of 1).
+pub(crate) fn every<T: Copy>(v: Vec<T>, stride: usize) -> Vec<T> {
+    if stride <= 1 {
+        return v;
+    }
+    v.into_iter().step_by(stride).collect()
 }
 
 /// Tuning of a diagnosis; the defaults are what `simrod diagnose` uses.
@@ -265,7 +279,7 @@ fn stages(
 ) -> Result<Diagnosis, String> {
     let p = prepare(twin, meas, o)?;
     let s = sensitivities(twin, &p, o)?;
-    let (mut cands, lin) = score_effects(&p, &s, o, twin.channels());
+    let (mut cands, lin) = score_effects(&p, &s, twin.channels());
     let selected = greedy(&p, &s, o);
     let leaders = refit_list(&cands, &selected, o);
     let fits = confirm_leaders(twin, &p, &s, o, &leaders, &mut cands);
@@ -313,7 +327,7 @@ fn confirm_leaders(
         let start: Vec<f64> = cands[ci].params.iter().map(|f| f.value).collect();
         let Some(fit) = refit(twin, p, o, &sp, &start) else { continue };
         let std = parameter_std(p, &fit, &sp, twin.dt_s());
-        confirm(&mut cands[ci], &fit, &std, &sp, p, o);
+        confirm(&mut cands[ci], &fit, &std, &sp, p);
         fits.push((ci, fit));
     }
     fits

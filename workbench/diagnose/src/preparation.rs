@@ -7,23 +7,28 @@ use model_core::Effects;
 use simrod_io::progress::Progress;
 use simrod_numerics::stats::moving_mean;
 
-use super::engine::{Options, RegionChange, Twin};
+use super::engine::{every, Options, RegionChange, Twin};
 
-/// The measurement against the current model, reduced to what the fits need.
+/// The measurement against the current model, reduced to what the fits need: every
+/// series holds only the fit samples (every `stride`-th sample of the run), so a long
+/// run costs the fits no more memory than a short one.
 pub(super) struct Prepared {
-    /// Measured `[channel][sample]`.
+    /// Measured `[channel][fit sample]`.
     pub meas: Vec<Vec<f64>>,
-    /// The current model's simulation, as the twin returned it.
+    /// The current model's simulation, as the twin returned it (fit samples).
     pub base_sim: Vec<Vec<f32>>,
     /// The same in `f64`.
     pub base: Vec<Vec<f64>>,
+    /// [`Options::regions`] on the fit samples.
+    pub regions: Vec<(String, Vec<bool>)>,
     /// `1/σ²` per channel.
     pub weights: Vec<f64>,
     /// Estimated noise σ per channel, by name.
     pub noise: Vec<(&'static str, f64)>,
-    /// The fit samples (every `stride`-th sample).
+    /// The fit samples' positions in the series above (all of them, in order).
     pub idx: Vec<usize>,
-    /// Samples between fit samples.
+    /// Samples of the run between fit samples: runs are read with
+    /// [`Twin::run_every`] at this stride.
     pub stride: usize,
     /// Weighted squared error of the current model.
     pub e0: f64,
@@ -53,17 +58,20 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         return Err("the twin returned channels of the wrong shape".into());
     }
     let stride = n.div_ceil(o.max_fit_samples.max(1)).max(1);
-    let idx: Vec<usize> = (0..n).step_by(stride).collect();
-    let base: Vec<Vec<f64>> = base_sim.iter().map(|c| c.iter().map(|v| f64::from(*v)).collect()).collect();
     // 0.25 s: slower than a tachometer's counting window, faster than most model error.
+    // The noise is the one thing estimated on every sample.
     let h = ((0.125 / twin.dt_s()).round() as usize).max(5);
     let noise: Vec<(&'static str, f64)> =
-        meas.iter().zip(&base).zip(channels).map(|((m, s), c)| (c.name(), channel_sigma(m, s, h))).collect();
+        meas.iter().zip(&base_sim).zip(channels).map(|((m, s), c)| (c.name(), channel_sigma(m, s, h))).collect();
     let weights = noise.iter().map(|(_, s)| 1.0 / (s * s)).collect();
+    let base_sim: Vec<Vec<f32>> = base_sim.into_iter().map(|c| every(c, stride)).collect();
+    let base: Vec<Vec<f64>> = base_sim.iter().map(|c| c.iter().map(|v| f64::from(*v)).collect()).collect();
+    let idx: Vec<usize> = (0..base.first().map_or(0, Vec::len)).collect();
     let mut p = Prepared {
-        meas: meas.to_vec(),
+        meas: meas.iter().map(|m| every(m.clone(), stride)).collect(),
         base_sim,
         base,
+        regions: o.regions.iter().map(|(name, m)| (name.clone(), every(m.clone(), stride))).collect(),
         weights,
         noise,
         idx,
@@ -84,8 +92,8 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
 
 /// Noise σ of one channel's residual `m - s`, floored so that a noiseless (simulated or
 /// quantised-flat) channel cannot get an infinite weight.
-fn channel_sigma(m: &[f64], s: &[f64], h: usize) -> f64 {
-    let r: Vec<f64> = m.iter().zip(s).map(|(a, b)| a - b).collect();
+fn channel_sigma(m: &[f64], s: &[f32], h: usize) -> f64 {
+    let r: Vec<f64> = m.iter().zip(s).map(|(a, b)| a - f64::from(*b)).collect();
     let rms = (m.iter().map(|v| v * v).sum::<f64>() / m.len().max(1) as f64).sqrt();
     noise_sigma(&r, h).max(1e-4 * rms).max(1e-9)
 }
@@ -111,8 +119,8 @@ pub(super) fn noise_sigma(r: &[f64], h: usize) -> f64 {
 type RunResult = Result<Vec<Vec<f32>>, String>;
 
 /// One simulation per job on the current rayon pool (the diagnosis's, see
-/// [`super::engine::diagnose`]); results in job order.
-pub(super) fn run_all(twin: &dyn Twin, jobs: &[Effects], o: &Options) -> Vec<RunResult> {
+/// [`super::engine::diagnose`]), on the fit samples of `p`; results in job order.
+pub(super) fn run_all(twin: &dyn Twin, p: &Prepared, jobs: &[Effects], o: &Options) -> Vec<RunResult> {
     use rayon::prelude::*;
     let bar = match o.progress {
         true => Progress::new("simulations", jobs.len()),
@@ -121,7 +129,7 @@ pub(super) fn run_all(twin: &dyn Twin, jobs: &[Effects], o: &Options) -> Vec<Run
     let out = jobs
         .par_iter()
         .map(|fx| {
-            let r = twin.run(fx);
+            let r = twin.run_every(fx, p.stride);
             bar.tick("");
             r
         })

@@ -51,14 +51,14 @@ impl Problem<'_> {
 
     /// Simulate `theta`; `None` if the twin fails or returns the wrong shape.
     fn run(&self, theta: &[f64]) -> Option<Vec<Vec<f32>>> {
-        let y = self.twin.run(&self.effects(theta)).ok()?;
+        let y = self.twin.run_every(&self.effects(theta), self.p.stride).ok()?;
         check_shape(self.p, &y).ok().map(|()| y)
     }
 
     /// Simulate each of `thetas` in parallel.
     fn run_many(&self, thetas: &[Vec<f64>]) -> Vec<Option<Vec<Vec<f32>>>> {
         let jobs: Vec<Effects> = thetas.iter().map(|t| self.effects(t)).collect();
-        run_all(self.twin, &jobs, self.o)
+        run_all(self.twin, self.p, &jobs, self.o)
             .into_iter()
             .map(|r| r.ok().filter(|y| check_shape(self.p, y).is_ok()))
             .collect()
@@ -249,7 +249,6 @@ pub(super) fn confirm(
     std: &[f64],
     specs: &[&ParamSpec],
     p: &Prepared,
-    o: &Options,
 ) {
     cand.confirmed_reduction = Some(((p.e0 - fit.energy) / p.excess).clamp(0.0, 1.0));
     cand.significant = false;
@@ -266,7 +265,7 @@ pub(super) fn confirm(
         ch.rmse_confirmed = Some(rmse(&p.meas[c], &s, &p.idx));
     }
     let confirmed =
-        region_errors(p, &o.regions, |c, k| f64::from(fit.sim[c][p.idx[k]]) - p.base[c][p.idx[k]]);
+        region_errors(p, &p.regions, |c, k| f64::from(fit.sim[c][p.idx[k]]) - p.base[c][p.idx[k]]);
     for (rc, conf) in cand.regions.iter_mut().zip(confirmed) {
         rc.confirmed = Some(conf.predicted);
     }
@@ -327,6 +326,7 @@ mod tests {
             meas,
             base: vec![vec![0.0; n]],
             base_sim,
+            regions: Vec::new(),
             weights: vec![1.0],
             noise: vec![("Throttle", 1.0)],
             idx: (0..n).collect(),
@@ -406,7 +406,7 @@ mod tests {
             regions: Vec::new(),
         };
         for (sd, significant) in [(f64::INFINITY, false), (f64::NAN, false), (0.1, true), (3.0, false)] {
-            confirm(&mut cand, &fit, &[sd], &[&sa], &p, &o);
+            confirm(&mut cand, &fit, &[sd], &[&sa], &p);
             assert_eq!(cand.significant, significant, "σ = {sd}");
         }
     }

@@ -29,7 +29,6 @@ pub(super) fn fit_lin(s: &Sensitivities, ix: &[usize]) -> (Vec<f64>, f64) {
 pub(super) fn score_effects(
     p: &Prepared,
     s: &Sensitivities,
-    o: &Options,
     channels: &[Channel],
 ) -> (Vec<Candidate>, Vec<Vec<f64>>) {
     s.groups
@@ -43,7 +42,7 @@ pub(super) fn score_effects(
                 confirmed_reduction: None,
                 significant: false,
                 channels: channel_changes(p, s, channels, ix, &th),
-                regions: region_errors(p, &o.regions, |c, k| {
+                regions: region_errors(p, &p.regions, |c, k| {
                     ix.iter().zip(&th).map(|(&i, t)| s.sens[i][c][k] * t).sum::<f64>()
                 }),
             };

@@ -52,7 +52,7 @@ pub(super) fn sensitivities(twin: &dyn Twin, p: &Prepared, o: &Options) -> Resul
         .map(|(s, (v, h))| with_values(&o.base, &[s], &[v + h]))
         .collect();
     let mut sens: Vec<Vec<Vec<f64>>> = Vec::with_capacity(specs.len());
-    for r in run_all(twin, &jobs, o) {
+    for r in run_all(twin, p, &jobs, o) {
         let y = r?;
         check_shape(p, &y)?;
         sens.push(

@@ -66,7 +66,7 @@ fn channel_section(o: &mut String, c: &ChannelResult, t: &[f64], worst: bool) {
         &format!("{}: residual sim − meas (worst windows shaded)", c.name),
         &c.unit,
         t,
-        &[Series { values: &c.residual, color: "#c0392b", label: "residual" }],
+        &[Series { values: &c.residual(), color: "#c0392b", label: "residual" }],
         &shade,
         200.0,
     ));
@@ -246,7 +246,7 @@ fn baseline_section(o: &mut String, r: &CompareResult, b: &Baseline) {
             &r.time_s,
             &[
                 Series { values: &bc.residual, color: "#9e9e9e", label: "before" },
-                Series { values: &c.residual, color: "#c0392b", label: "after" },
+                Series { values: &c.residual(), color: "#c0392b", label: "after" },
             ],
             &[],
             200.0,

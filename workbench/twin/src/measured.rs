@@ -84,7 +84,7 @@ pub struct Paired {
 
 /// The comparison grid of a measured run and what lies on it besides the channels:
 /// shared by the prepared run ([`MeasuredTwin`]) and every alignment made from it.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct RunGrid {
     /// [s] comparison grid (the file's time axis unless resampled).
     pub time_s: Vec<f64>,
@@ -205,40 +205,48 @@ impl MeasuredTwin {
     }
 
     /// The twin with `effects` paired with every measured channel, plus the derived
-    /// powers.
+    /// powers; the prepared run stays (to run the twin again).
     pub fn align(&self, effects: Effects) -> Result<Aligned, TwinError> {
-        let mut wanted: Vec<Channel> = self.measured.iter().map(|(c, _)| *c).collect();
-        let extra = [Channel::ILmlPhase, Channel::ILmrPhase, Channel::SuTMotorEnc];
-        wanted.extend(extra);
+        let measured = self.measured.iter().map(|(c, m)| (*c, m.clone())).collect();
+        self.pair(effects, measured, self.grid.clone())
+    }
+
+    /// As [`MeasuredTwin::align`], consuming the prepared run: its channels and grid
+    /// move into the result instead of being copied (a long run held once, not twice).
+    pub fn into_aligned(mut self, effects: Effects) -> Result<Aligned, TwinError> {
+        let measured = std::mem::take(&mut self.measured);
+        let empty = RunGrid { dt_us: self.grid.dt_us, ..RunGrid::default() };
+        let grid = std::mem::replace(&mut self.grid, empty);
+        self.pair(effects, measured, grid)
+    }
+
+    /// As [`MeasuredTwin::align`], moving the measured channels into the pairs: the
+    /// prepared run can still run the twin (its inputs and grid stay), and a long run is
+    /// not held twice.
+    pub fn align_taking(&mut self, effects: Effects) -> Result<Aligned, TwinError> {
+        let measured = std::mem::take(&mut self.measured);
+        self.pair(effects, measured, self.grid.clone())
+    }
+
+    fn pair(&self, effects: Effects, measured: Vec<(Channel, Vec<f64>)>, grid: RunGrid) -> Result<Aligned, TwinError> {
+        let mut wanted: Vec<Channel> = measured.iter().map(|(c, _)| *c).collect();
+        wanted.extend([Channel::ILmlPhase, Channel::ILmrPhase, Channel::SuTMotorEnc]);
         let mut sim = self.simulate(effects, &wanted)?;
         let widen = |v: Vec<f32>| v.into_iter().map(f64::from).collect::<Vec<f64>>();
-        let tail = sim.split_off(self.measured.len());
+        let tail = sim.split_off(measured.len());
         let [phase_l, phase_r, speed]: [Vec<f32>; 3] = tail.try_into().map_err(|_| TwinError::NoChannels)?;
-        let mut channels: Vec<Paired> = self
-            .measured
-            .iter()
+        let mut channels: Vec<Paired> = measured
+            .into_iter()
             .zip(sim)
-            .map(|((ch, m), s)| {
+            .map(|((ch, mut m), s)| {
                 let s = widen(s);
-                let mut m = m.clone();
                 snap_to_f32(&mut m, &s);
-                Paired {
-                    name: ch.name().to_string(),
-                    unit: ch.unit().to_string(),
-                    derived: false,
-                    meas: m,
-                    sim: s,
-                }
+                Paired { name: ch.name().to_string(), unit: ch.unit().to_string(), derived: false, meas: m, sim: s }
             })
             .collect();
         let derived = derive_powers(&channels);
         channels.extend(derived);
-        Ok(Aligned {
-            grid: self.grid.clone(),
-            channels,
-            phase_current: [widen(phase_l), widen(phase_r)],
-            sim_speed: widen(speed),
-        })
+        Ok(Aligned { grid, channels, phase_current: [widen(phase_l), widen(phase_r)], sim_speed: widen(speed) })
     }
 }
 

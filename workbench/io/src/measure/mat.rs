@@ -1,22 +1,33 @@
-//! MATLAB Level 5 MAT files (`save -v6`/`-v7`, compressed or not): reading through the
-//! `matfile` crate, and a small writer for the virtual bench.
+//! MATLAB Level 5 MAT files (`save -v6`/`-v7`, compressed or not, either byte order):
+//! a reader of its own, and a small writer for the virtual bench.
 //!
 //! Convention (MATLAB names cannot hold spaces or dots):
-//! - one real numeric vector per channel (double preferred; any numeric class is read
-//!   as f64), all the length of `time`;
+//! - one real numeric vector (1xN or Nx1) per channel, all the length of `time`. Every
+//!   numeric class is read as f64: double, single, int8..int64, uint8..uint64 and logical
+//!   (uint8 with the logical flag), whatever smaller storage type the file uses (MATLAB
+//!   stores a double array of small integers as miUINT8, miINT16, ...);
 //! - the variable name is the bench name with every character other than `A-Z a-z 0-9`
 //!   replaced by `_` (`I_XLML 2.2` -> `I_XLML_2_2`, `SuT Throttle` -> `SuT_Throttle`);
 //!   names of known channels (`model_core::Channel::ALL`, the set points) are mapped
 //!   back, other variables keep their MATLAB name;
-//! - a vector `time` (or `t`) [s];
+//! - a vector `time` (or `t`) \[s\];
 //! - optional char row vectors `<var>_unit`, e.g. `C_Kistler_L_unit = 'N m'`
 //!   (`time_unit` defaults to `s`);
-//! - scalars (1x1) are taken as metadata and ignored; other matrices, complex data and a
-//!   vector of the wrong length are errors. v7.3 files (HDF5) are refused with a hint.
+//! - metadata is ignored: numeric scalars (1x1) and char arrays that are not in a
+//!   channel's place (see below).
 //!
-//! `matfile` skips char arrays, so the units are found by a short walk over the file's
-//! elements here ([`char_vars`]); compressed elements are inflated with `libflate`,
-//! the same inflater `matfile` uses.
+//! Errors, each naming the variable and what was expected: a char array in a channel's
+//! place (named `time`/`t`, after a known channel, or with a `<var>_unit`), cell, struct,
+//! object and sparse arrays (they may hold the channels, so they are not skipped
+//! silently), complex data, other matrices, a vector of the wrong length, a non-finite
+//! value, data that contradicts its dimensions. A file cut short anywhere is reported as
+//! truncated. v7.3 files (HDF5) are refused with a hint.
+//!
+//! The `matfile` crate is not used for reading: it drops char arrays, misreads int32
+//! (class int32 is checked against miUINT32 storage), accepts only some storage types,
+//! stops silently at a broken element, prints to stdout and panics on some damaged input
+//! (an overflow in its size arithmetic). No input may panic here (the reader is fuzzed):
+//! every read is bounds-checked, every size sum checked.
 
 use std::collections::BTreeMap;
 use std::io::{self, Read, Write};
@@ -50,192 +61,410 @@ fn bench_name(var: &str) -> Option<&'static str> {
         .find(|n| sanitize(n) == var)
 }
 
-fn to_f64(d: &matfile::NumericData) -> Option<Vec<f64>> {
-    use matfile::NumericData as N;
-    fn conv<T: Copy + Into<f64>>(r: &[T], i: &Option<Vec<T>>) -> Option<Vec<f64>> {
-        i.is_none().then(|| r.iter().map(|&x| x.into()).collect())
-    }
-    match d {
-        N::Double { real, imag } => conv(real, imag),
-        N::Single { real, imag } => conv(real, imag),
-        N::Int8 { real, imag } => conv(real, imag),
-        N::UInt8 { real, imag } => conv(real, imag),
-        N::Int16 { real, imag } => conv(real, imag),
-        N::UInt16 { real, imag } => conv(real, imag),
-        N::Int32 { real, imag } => conv(real, imag),
-        N::UInt32 { real, imag } => conv(real, imag),
-        // 64-bit integers above 2^53 lose digits; sample data never gets there.
-        N::Int64 { real, imag } => imag.is_none().then(|| real.iter().map(|&x| x as f64).collect()),
-        N::UInt64 { real, imag } => imag.is_none().then(|| real.iter().map(|&x| x as f64).collect()),
-    }
-}
-
 /// Parse MAT bytes; `origin` names the file in errors.
 pub(crate) fn parse(origin: &Path, bytes: &[u8]) -> Result<RawTable, FileError> {
     let bad = |m: String| FileError::whole(origin, m);
-    if bytes.is_empty() {
-        return Err(bad("empty file".into()));
-    }
-    if bytes.len() < 128 || !bytes.starts_with(b"MATLAB") {
-        return Err(bad("not a MAT file (no MATLAB header)".into()));
-    }
-    let version = match &bytes[126..128] {
-        b"IM" => u16::from_le_bytes([bytes[124], bytes[125]]),
-        _ => u16::from_be_bytes([bytes[124], bytes[125]]),
-    };
-    if version == 0x0200 {
-        return Err(bad("MAT v7.3 (HDF5) files are not supported; save with -v7 (or -v6)".into()));
-    }
-    // The structure check first: `matfile` prints to stdout about unexpected elements.
-    let units = char_vars(bytes).map_err(|e| bad(format!("not a readable MAT v5/v7 file: {e}")))?;
-    let mat =
-        matfile::MatFile::parse(bytes).map_err(|e| bad(format!("not a readable MAT v5/v7 file: {e}")))?;
-    let mut time: Option<RawColumn> = None;
-    let mut cols = Vec::new();
-    for a in mat.arrays() {
-        let var = a.name();
-        let size = a.size();
-        let n: usize = size.iter().product();
-        let vector = size.iter().filter(|&&d| d != 1).count() <= 1;
-        if n == 1 || var.is_empty() {
-            continue; // metadata scalar, or MATLAB's unnamed subsystem data (objects)
-        }
-        if !vector {
-            let dims: Vec<String> = size.iter().map(usize::to_string).collect();
-            return Err(bad(format!(
-                "variable `{var}` is a {} array; channels must be vectors",
-                dims.join("x")
-            )));
-        }
-        let values = to_f64(a.data())
-            .ok_or_else(|| bad(format!("variable `{var}` is complex; channels must be real")))?;
-        let name = bench_name(var).map_or_else(|| var.to_owned(), str::to_owned);
-        let unit = units.get(&format!("{var}_unit")).cloned();
-        let col = RawColumn { alias: (name != var).then(|| var.to_owned()), name, unit, values };
-        if is_time(var, col.unit.as_deref()) {
-            if time.is_some() {
-                return Err(bad(format!("more than one time vector (`{var}`)")));
-            }
-            time = Some(col);
-        } else {
-            cols.push(col);
-        }
-    }
-    let time = time.ok_or_else(|| bad("no time vector (a variable named `time` or `t`)".into()))?;
-    for c in &cols {
-        if c.values.len() != time.values.len() {
-            let var = c.alias.as_deref().unwrap_or(&c.name);
-            return Err(bad(format!(
-                "channel \"{}\" (variable `{var}`) has {} samples, time has {}",
-                c.name,
-                c.values.len(),
-                time.values.len()
-            )));
-        }
-    }
-    Ok(RawTable { source: origin.to_path_buf(), time, columns: cols, rows: Rows::Samples })
+    let e = header(bytes).map_err(bad)?;
+    let vars = variables(e, bytes).map_err(|m| bad(format!("not a readable MAT v5/v7 file: {m}")))?;
+    let cols = columns(vars).map_err(bad)?;
+    let (time, columns) = split_time(cols).map_err(bad)?;
+    Ok(RawTable { source: origin.to_path_buf(), time, columns, rows: Rows::Samples })
 }
+
+// ---------------------------------------------------------------- file structure
 
 /// Little or big endian reads, as the header says.
 #[derive(Clone, Copy)]
 struct Endian(bool);
 
 impl Endian {
+    /// `N` bytes at `at` in little-endian order, `None` past the end.
+    fn bytes<const N: usize>(self, b: &[u8], at: usize) -> Option<[u8; N]> {
+        let mut a: [u8; N] = b.get(at..at.checked_add(N)?)?.try_into().ok()?;
+        if !self.0 {
+            a.reverse();
+        }
+        Some(a)
+    }
+
     fn u32(self, b: &[u8], at: usize) -> Option<u32> {
-        let a: [u8; 4] = b.get(at..at + 4)?.try_into().ok()?;
-        Some(if self.0 { u32::from_le_bytes(a) } else { u32::from_be_bytes(a) })
+        self.bytes(b, at).map(u32::from_le_bytes)
+    }
+}
+
+const MI_MATRIX: u32 = 14;
+const MI_COMPRESSED: u32 = 15;
+const HEADER: usize = 128;
+
+/// Check the 128-byte header; its byte order.
+fn header(bytes: &[u8]) -> Result<Endian, String> {
+    if bytes.is_empty() {
+        return Err("empty file".into());
+    }
+    let magic = b"MATLAB";
+    let n = bytes.len().min(magic.len());
+    if bytes[..n] != magic[..n] {
+        return Err("not a MAT file (no MATLAB header)".into());
+    }
+    if bytes.len() < HEADER {
+        return Err(format!(
+            "truncated MAT file: it ends after {} bytes, inside the 128-byte header",
+            bytes.len()
+        ));
+    }
+    let e = match &bytes[126..HEADER] {
+        b"IM" => Endian(true),
+        b"MI" => Endian(false),
+        _ => return Err("not a MAT v5/v7 file (no `IM`/`MI` byte-order mark at byte 126)".into()),
+    };
+    match e.bytes(bytes, 124).map(u16::from_le_bytes) {
+        Some(0x0100) => Ok(e),
+        Some(0x0200) => Err("MAT v7.3 (HDF5) files are not supported; save with -v7 (or -v6)".into()),
+        v => Err(format!("unsupported MAT version {:#06x}; save with -v7 (or -v6)", v.unwrap_or(0))),
+    }
+}
+
+/// A top-level variable as stored.
+struct Var {
+    name: String,
+    dims: Dims,
+    kind: Kind,
+}
+
+enum Kind {
+    Numeric {
+        complex: bool,
+        values: Vec<f64>,
+    },
+    Char(String),
+    /// Cell, struct, sparse, ...: the mxCLASS number.
+    Other(u32),
+}
+
+/// Array dimensions (at least two), displayed MATLAB style: `100x2`.
+struct Dims(Vec<usize>);
+
+impl Dims {
+    /// At least two non-negative miINT32.
+    fn read(e: Endian, d: &[u8]) -> Option<Self> {
+        let dims: Option<Vec<usize>> = d
+            .chunks_exact(4)
+            .map(|c| e.bytes(c, 0).map(i32::from_le_bytes).and_then(|x| usize::try_from(x).ok()))
+            .collect();
+        dims.filter(|d| d.len() >= 2).map(Dims)
+    }
+
+    /// Number of elements (saturating: a corrupt product is caught by the data check).
+    fn count(&self) -> u64 {
+        self.0.iter().try_fold(1u64, |n, &d| n.checked_mul(d as u64)).unwrap_or(u64::MAX)
+    }
+
+    /// At most one dimension other than 1.
+    fn is_vector(&self) -> bool {
+        self.0.iter().filter(|&&d| d != 1).count() <= 1
+    }
+}
+
+impl std::fmt::Display for Dims {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let d: Vec<String> = self.0.iter().map(usize::to_string).collect();
+        f.write_str(&d.join("x"))
+    }
+}
+
+/// The top-level elements after the header: miMATRIX or miCOMPRESSED (one miMATRIX).
+fn variables(e: Endian, bytes: &[u8]) -> Result<Vec<Var>, String> {
+    let mut vars = Vec::new();
+    let mut p = HEADER;
+    while p < bytes.len() {
+        let (ty, data, next) = top_element(e, bytes, p)?;
+        vars.push(match ty {
+            MI_MATRIX => read_matrix(e, data, p)?,
+            MI_COMPRESSED => read_matrix(e, &inflate(e, data, p)?, p)?,
+            _ => return Err(format!("unexpected element type {ty} at byte {p}")),
+        });
+        p = next;
+    }
+    Ok(vars)
+}
+
+/// The element at `p`: type, data, and where the next one starts. Uncompressed elements
+/// are padded to 8 bytes; missing padding at the very end is accepted.
+fn top_element(e: Endian, b: &[u8], p: usize) -> Result<(u32, &[u8], usize), String> {
+    let (Some(ty), Some(size)) = (e.u32(b, p), e.u32(b, p + 4)) else {
+        return Err(format!("the element tag at byte {p} is cut short: the file is truncated"));
+    };
+    let size = size as usize;
+    let start = p + 8;
+    let Some(data) = start.checked_add(size).and_then(|end| b.get(start..end)) else {
+        return Err(format!(
+            "element runs past the end of the file (the element at byte {p} declares {size} bytes, {} remain): \
+             the file is truncated",
+            b.len() - start
+        ));
+    };
+    let padded = if ty == MI_COMPRESSED { size } else { size.div_ceil(8) * 8 };
+    Ok((ty, data, start.saturating_add(padded)))
+}
+
+/// The body of the miMATRIX element inside a miCOMPRESSED one at byte `at`.
+fn inflate(e: Endian, z: &[u8], at: usize) -> Result<Vec<u8>, String> {
+    let mut out = Vec::new();
+    libflate::zlib::Decoder::new(z).and_then(|mut d| d.read_to_end(&mut out)).map_err(|err| {
+        match err.kind() {
+            io::ErrorKind::UnexpectedEof => {
+                format!("the compressed element at byte {at} ends early: the file is truncated")
+            }
+            _ => format!("corrupt compressed element at byte {at}: {err}"),
+        }
+    })?;
+    let (ty, size) = (e.u32(&out, 0), e.u32(&out, 4).map(|s| s as usize));
+    match (ty, size) {
+        (Some(MI_MATRIX), Some(n)) if n <= out.len() - 8 => {
+            out.truncate(8 + n);
+            out.drain(..8);
+            Ok(out)
+        }
+        (Some(MI_MATRIX), _) => {
+            Err(format!("corrupt compressed element at byte {at}: its matrix is cut short"))
+        }
+        _ => Err(format!("compressed element at byte {at} does not hold a matrix")),
     }
 }
 
 /// Next sub-element of a matrix at `*p` (normal or small format): `(type, data)`.
 fn sub<'a>(e: Endian, b: &'a [u8], p: &mut usize) -> Option<(u32, &'a [u8])> {
     let first = e.u32(b, *p)?;
-    if first >> 16 != 0 {
-        let size = (first >> 16) as usize;
-        let data = b.get(*p + 4..*p + 4 + size.min(4))?;
-        *p += 8;
-        return Some((first & 0xffff, data));
+    let small = first >> 16;
+    let (ty, start, len, step) = if small != 0 {
+        (first & 0xffff, *p + 4, small as usize, 8)
+    } else {
+        let len = e.u32(b, *p + 4)? as usize;
+        (first, *p + 8, len, len.div_ceil(8).checked_mul(8)?.checked_add(8)?)
+    };
+    if small > 4 {
+        return None;
     }
-    let size = e.u32(b, *p + 4)? as usize;
-    let data = b.get(*p + 8..*p + 8 + size)?;
-    *p += 8 + size.div_ceil(8) * 8;
-    Some((first, data))
+    let data = b.get(start..start.checked_add(len)?)?;
+    *p = p.checked_add(step)?;
+    Some((ty, data))
 }
 
-/// The char row vectors of a MAT file, by name (multi-row char arrays are skipped).
-/// Also checks the element structure: only miMATRIX and miCOMPRESSED at the top level.
-pub fn char_vars(bytes: &[u8]) -> Result<BTreeMap<String, String>, String> {
-    let e = Endian(bytes.get(126..128) == Some(b"IM"));
-    let mut out = BTreeMap::new();
-    let mut p = 128;
-    while p + 8 <= bytes.len() {
-        let ty = e.u32(bytes, p).ok_or("truncated element")?;
-        let size = e.u32(bytes, p + 4).ok_or("truncated element")? as usize;
-        let data = bytes.get(p + 8..p + 8 + size).ok_or("element runs past the end of the file")?;
-        match ty {
-            14 => matrix_char(e, data, &mut out),
-            15 => {
-                let mut inflated = Vec::new();
-                libflate::zlib::Decoder::new(data)
-                    .and_then(|mut d| d.read_to_end(&mut inflated))
-                    .map_err(|err| format!("corrupt compressed element at byte {p}: {err}"))?;
-                let ity = e.u32(&inflated, 0).unwrap_or(0);
-                let isz = e.u32(&inflated, 4).unwrap_or(0) as usize;
-                match (ity, inflated.get(8..8 + isz)) {
-                    (14, Some(d)) => matrix_char(e, d, &mut out),
-                    _ => return Err(format!("corrupt compressed element at byte {p}")),
+const MX_CHAR: u32 = 4;
+/// mxDOUBLE_CLASS ..= mxUINT64_CLASS (logical is mxUINT8 with a flag).
+const MX_NUMERIC: std::ops::RangeInclusive<u32> = 6..=15;
+const FLAG_COMPLEX: u32 = 0x0800;
+
+/// One miMATRIX body (the element at byte `at`): flags, dimensions, name, then the data
+/// of the classes read here.
+fn read_matrix(e: Endian, m: &[u8], at: usize) -> Result<Var, String> {
+    let corrupt = |what: &str| format!("the matrix at byte {at} is corrupt: {what}");
+    let mut p = 0;
+    let flags = sub(e, m, &mut p).and_then(|(_, f)| e.u32(f, 0)).ok_or_else(|| corrupt("no array flags"))?;
+    let dims =
+        sub(e, m, &mut p).and_then(|(_, d)| Dims::read(e, d)).ok_or_else(|| corrupt("bad dimensions"))?;
+    let (_, name) = sub(e, m, &mut p).ok_or_else(|| corrupt("no name"))?;
+    let name = String::from_utf8_lossy(name).trim_end_matches('\0').to_owned();
+    let kind = data(e, flags, sub(e, m, &mut p))
+        .and_then(|k| check_count(&dims, k))
+        .map_err(|what| format!("variable `{name}` (at byte {at}) is corrupt: {what}"))?;
+    Ok(Var { name, dims, kind })
+}
+
+/// The data `d` of the numeric and char classes; other classes by name only.
+fn data(e: Endian, flags: u32, d: Option<(u32, &[u8])>) -> Result<Kind, String> {
+    let class = flags & 0xff;
+    if class != MX_CHAR && !MX_NUMERIC.contains(&class) {
+        return Ok(Kind::Other(class));
+    }
+    let (ty, d) = d.ok_or("its data runs past its element")?;
+    if class == MX_CHAR {
+        return text(e, ty, d).map(Kind::Char).ok_or_else(|| format!("char data of element type {ty}"));
+    }
+    let values = numbers(e, ty, d).ok_or_else(|| {
+        format!("its data (element type {ty}, {} bytes) is not a whole number of numeric values", d.len())
+    })?;
+    Ok(Kind::Numeric { complex: flags & FLAG_COMPLEX != 0, values })
+}
+
+/// Numeric data must hold exactly one value per element of the dimensions.
+fn check_count(dims: &Dims, k: Kind) -> Result<Kind, String> {
+    match &k {
+        Kind::Numeric { values, .. } if values.len() as u64 != dims.count() => {
+            Err(format!("it holds {} values, its dimensions {dims} need {}", values.len(), dims.count()))
+        }
+        _ => Ok(k),
+    }
+}
+
+/// The class of an array not read here, with its article: "a struct".
+fn class_name(class: u32) -> String {
+    match class {
+        1 => "a cell".into(),
+        2 => "a struct".into(),
+        3 => "an object".into(),
+        5 => "a sparse".into(),
+        16 => "a function handle".into(),
+        17 => "an opaque (string, datetime, table, ...)".into(),
+        _ => format!("an unknown class-{class}"),
+    }
+}
+
+/// Stored numbers (any numeric storage type) as f64; `None` for a non-numeric type or a
+/// byte count that is not a whole number of values. 64-bit integers above 2^53 lose
+/// digits; sample data never gets there.
+fn numbers(e: Endian, ty: u32, d: &[u8]) -> Option<Vec<f64>> {
+    match ty {
+        1 => each(e, d, |b| f64::from(i8::from_le_bytes(b))),
+        2 => each(e, d, |b| f64::from(u8::from_le_bytes(b))),
+        3 => each(e, d, |b| f64::from(i16::from_le_bytes(b))),
+        4 => each(e, d, |b| f64::from(u16::from_le_bytes(b))),
+        5 => each(e, d, |b| f64::from(i32::from_le_bytes(b))),
+        6 => each(e, d, |b| f64::from(u32::from_le_bytes(b))),
+        7 => each(e, d, |b| f64::from(f32::from_le_bytes(b))),
+        9 => each(e, d, f64::from_le_bytes),
+        12 => each(e, d, |b| i64::from_le_bytes(b) as f64),
+        13 => each(e, d, |b| u64::from_le_bytes(b) as f64),
+        _ => None,
+    }
+}
+
+/// `f` of every `N`-byte value of `d` (in little-endian order).
+fn each<const N: usize>(e: Endian, d: &[u8], f: impl Fn([u8; N]) -> f64) -> Option<Vec<f64>> {
+    let chunks = d.chunks_exact(N);
+    if !chunks.remainder().is_empty() {
+        return None;
+    }
+    chunks.map(|c| e.bytes(c, 0).map(&f)).collect()
+}
+
+/// Char data: miINT8/miUINT8/miUTF8, miUINT16/miUTF16 or miUTF32.
+fn text(e: Endian, ty: u32, d: &[u8]) -> Option<String> {
+    match ty {
+        1 | 2 | 16 => Some(String::from_utf8_lossy(d).into_owned()),
+        4 | 17 => {
+            let units: Option<Vec<u16>> =
+                (0..d.len() / 2).map(|i| e.bytes(d, 2 * i).map(u16::from_le_bytes)).collect();
+            Some(String::from_utf16_lossy(&units?))
+        }
+        18 => (0..d.len() / 4)
+            .map(|i| {
+                e.bytes(d, 4 * i).map(u32::from_le_bytes).map(|c| char::from_u32(c).unwrap_or('\u{fffd}'))
+            })
+            .collect(),
+        _ => None,
+    }
+}
+
+// ---------------------------------------------------------------- convention
+
+/// The channels (time among them) of the variables, in file order, with their units.
+fn columns(vars: Vec<Var>) -> Result<Vec<RawColumn>, String> {
+    if vars.iter().all(|v| v.name.is_empty()) {
+        return Err("no variables (an empty MAT file, or one truncated after its header)".into());
+    }
+    let units = units(&vars)?;
+    let mut cols = Vec::new();
+    // Unnamed variables are MATLAB's subsystem data (objects).
+    for v in vars.into_iter().filter(|v| !v.name.is_empty()) {
+        match v.kind {
+            Kind::Numeric { complex, values } => {
+                if let Some(c) = column(&v.name, &v.dims, complex, values, &units)? {
+                    cols.push(c);
                 }
             }
-            // Checked here so that `matfile` never meets (and prints about) other types.
-            _ => return Err(format!("unexpected element type {ty} at byte {p}")),
+            Kind::Char(_) => char_in_place(&v, &units)?,
+            Kind::Other(class) => {
+                return Err(format!(
+                    "variable `{}` is {} array; a numeric vector (channel) was expected \
+                     (cell, struct, object and sparse arrays are not read: save each channel as a vector)",
+                    v.name,
+                    class_name(class)
+                ))
+            }
         }
-        p += 8 + if ty == 15 { size } else { size.div_ceil(8) * 8 };
     }
-    Ok(out)
+    Ok(cols)
 }
 
-/// If `m` (a miMATRIX body) is a char row vector, record it.
-fn matrix_char(e: Endian, m: &[u8], out: &mut BTreeMap<String, String>) {
-    let mut p = 0;
-    let Some((_, flags)) = sub(e, m, &mut p) else {
-        return;
-    };
-    const MX_CHAR: u32 = 4;
-    if e.u32(flags, 0).map(|f| f & 0xff) != Some(MX_CHAR) {
-        return;
-    }
-    let Some((_, dims)) = sub(e, m, &mut p) else {
-        return;
-    };
-    if e.u32(dims, 0).is_some_and(|rows| rows > 1) {
-        return;
-    }
-    let Some((_, name)) = sub(e, m, &mut p) else {
-        return;
-    };
-    let Some((ty, data)) = sub(e, m, &mut p) else {
-        return;
-    };
-    let text = match ty {
-        // miINT8, miUINT8, miUTF8
-        1 | 2 | 16 => String::from_utf8_lossy(data).into_owned(),
-        // miUINT16, miUTF16
-        4 | 17 => {
-            let units: Vec<u16> =
-                data.chunks_exact(2)
-                    .map(|c| {
-                        if e.0 {
-                            u16::from_le_bytes([c[0], c[1]])
-                        } else {
-                            u16::from_be_bytes([c[0], c[1]])
-                        }
-                    })
-                    .collect();
-            String::from_utf16_lossy(&units)
+/// The `<var>_unit` char arrays, by the name of the variable they belong to.
+fn units(vars: &[Var]) -> Result<BTreeMap<String, String>, String> {
+    let mut units = BTreeMap::new();
+    for v in vars {
+        let (Kind::Char(t), Some(of)) = (&v.kind, v.name.strip_suffix("_unit")) else { continue };
+        if !v.dims.is_vector() {
+            return Err(format!(
+                "variable `{}` is a {} char array; a unit must be one row of text, e.g. 'N m'",
+                v.name, v.dims
+            ));
         }
-        _ => return,
-    };
-    out.insert(String::from_utf8_lossy(name).into_owned(), text);
+        units.insert(of.to_owned(), t.clone());
+    }
+    Ok(units)
+}
+
+/// A char array is metadata, unless it stands where a channel is expected.
+fn char_in_place(v: &Var, units: &BTreeMap<String, String>) -> Result<(), String> {
+    let unit = v.name.strip_suffix("_unit").is_some_and(|of| units.contains_key(of));
+    let channel = is_time(&v.name, None) || bench_name(&v.name).is_some() || units.contains_key(&v.name);
+    if channel && !unit {
+        return Err(format!(
+            "variable `{}` is a {} char array; a numeric vector (channel) was expected",
+            v.name, v.dims
+        ));
+    }
+    Ok(())
+}
+
+/// The channel of numeric variable `var`; `None` for a scalar, which is metadata.
+fn column(
+    var: &str,
+    dims: &Dims,
+    complex: bool,
+    values: Vec<f64>,
+    units: &BTreeMap<String, String>,
+) -> Result<Option<RawColumn>, String> {
+    if dims.count() == 1 {
+        return Ok(None);
+    }
+    if complex {
+        return Err(format!("variable `{var}` is complex; a channel must be a real numeric vector"));
+    }
+    if !dims.is_vector() {
+        return Err(format!("variable `{var}` is a {dims} array; a channel must be a vector (1xN or Nx1)"));
+    }
+    let name = bench_name(var).unwrap_or(var).to_owned();
+    let alias = (name != var).then(|| var.to_owned());
+    if let Some(i) = values.iter().position(|x| !x.is_finite()) {
+        let of = alias.as_ref().map(|a| format!(" (variable `{a}`)")).unwrap_or_default();
+        return Err(format!("channel \"{name}\"{of}, sample {}: value {} is not finite", i + 1, values[i]));
+    }
+    let unit = units.get(var).cloned();
+    Ok(Some(RawColumn { name, alias, unit, values }))
+}
+
+/// The time vector (`time` or `t`, in a time unit) and the other channels, which must
+/// be as long.
+fn split_time(cols: Vec<RawColumn>) -> Result<(RawColumn, Vec<RawColumn>), String> {
+    let var = |c: &RawColumn| c.alias.clone().unwrap_or_else(|| c.name.clone());
+    let (times, cols): (Vec<_>, Vec<_>) = cols.into_iter().partition(|c| is_time(&var(c), c.unit.as_deref()));
+    let mut times = times.into_iter();
+    let time = times.next().ok_or("no time vector (a variable named `time` or `t`)")?;
+    if let Some(t) = times.next() {
+        return Err(format!("more than one time vector (`{}`)", var(&t)));
+    }
+    for c in &cols {
+        if c.values.len() != time.values.len() {
+            return Err(format!(
+                "channel \"{}\" (variable `{}`) has {} samples, time has {}",
+                c.name,
+                var(c),
+                c.values.len(),
+                time.values.len()
+            ));
+        }
+    }
+    Ok((time, cols))
 }
 
 // ---------------------------------------------------------------- writer
@@ -245,7 +474,6 @@ const MI_UINT16: u32 = 4;
 const MI_INT32: u32 = 5;
 const MI_UINT32: u32 = 6;
 const MI_DOUBLE: u32 = 9;
-const MI_MATRIX: u32 = 14;
 const MX_CHAR_CLASS: u32 = 4;
 const MX_DOUBLE_CLASS: u32 = 6;
 
@@ -361,7 +589,22 @@ mod tests {
     }
 
     #[test]
-    fn writer_output_reads_back_with_matfile_and_units() {
+    fn header_errors_say_what_is_wrong() {
+        let mut h = vec![b' '; HEADER];
+        h[..6].copy_from_slice(b"MATLAB");
+        h[124..126].copy_from_slice(&0x0100u16.to_le_bytes());
+        let err = |b: &[u8]| header(b).err().unwrap_or_default();
+        assert!(err(b"MAT").contains("truncated MAT file: it ends after 3 bytes"));
+        assert!(err(b"%%MatrixMarket").contains("not a MAT file"));
+        assert!(err(&h).contains("no `IM`/`MI` byte-order mark"));
+        h[126..].copy_from_slice(b"IM");
+        assert!(header(&h).is_ok());
+        h[124..126].copy_from_slice(&0x0300u16.to_le_bytes());
+        assert!(err(&h).contains("unsupported MAT version 0x0300"));
+    }
+
+    #[test]
+    fn writer_output_reads_back_with_matfile_and_here() {
         let m = Measurement {
             source: "x".into(),
             time_s: vec![0.001, 0.002, 0.003],
@@ -373,13 +616,18 @@ mod tests {
         };
         let mut buf = Vec::new();
         write(&mut buf, &m).unwrap();
+        // An independent reader first (`matfile` reads doubles well; it skips chars).
         let mf = matfile::MatFile::parse(buf.as_slice()).unwrap();
-        let a = mf.find_by_name("I_XLML_2_2").unwrap();
-        assert_eq!(a.size(), &vec![3, 1]);
-        assert_eq!(to_f64(a.data()).unwrap(), m.signals[0].values);
-        assert_eq!(to_f64(mf.find_by_name("time").unwrap().data()).unwrap(), m.time_s);
-        let units = char_vars(&buf).unwrap();
-        assert_eq!(units["I_XLML_2_2_unit"], "A");
-        assert_eq!(units["time_unit"], "s");
+        let doubles = |name: &str| match mf.find_by_name(name).map(|a| (a.size().clone(), a.data())) {
+            Some((size, matfile::NumericData::Double { real, imag: None })) => (size, real.clone()),
+            other => panic!("{name}: {other:?}"),
+        };
+        assert_eq!(doubles("I_XLML_2_2"), (vec![3, 1], m.signals[0].values.clone()));
+        assert_eq!(doubles("time").1, m.time_s);
+        let raw = parse(Path::new("x.mat"), &buf).unwrap();
+        assert_eq!((raw.time.values, raw.time.unit.as_deref()), (m.time_s, Some("s")));
+        let c = &raw.columns[0];
+        assert_eq!((c.name.as_str(), c.alias.as_deref()), ("I_XLML 2.2", Some("I_XLML_2_2")));
+        assert_eq!((c.unit.as_deref(), &c.values), (Some("A"), &m.signals[0].values));
     }
 }
