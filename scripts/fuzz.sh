@@ -8,7 +8,8 @@
 # fuzz/fuzz_targets/. For each target: runs every recorded crash in
 # fuzz/regressions/<target>/ once, then fuzzes for SECONDS_PER_TARGET on a copy of the
 # committed seed corpus fuzz/corpus/<target>/ (new inputs go to a scratch directory, so
-# the committed corpus never grows), and prints executions, exec/s and coverage.
+# the committed corpus never grows) with the dictionary fuzz/dict/<target>.dict if there
+# is one, and prints executions, exec/s and coverage.
 # Exits non-zero if any target crashed, failed a check, timed out or ran out of memory,
 # printing the input that did it (kept under fuzz/artifacts/<target>/).
 #
@@ -98,9 +99,12 @@ for t in "${TARGETS[@]}"; do
 
   step "$t: fuzzing ${SECS}s on a copy of fuzz/corpus/$t/"
   log=$WORK/$t/fuzz.log
+  # The words the parser compares strings against (not traced without a sanitizer).
+  dict=()
+  [ -f "$ROOT/fuzz/dict/$t.dict" ] && dict=(-dict="$ROOT/fuzz/dict/$t.dict")
   # First corpus dir: scratch (libFuzzer writes new inputs there); second: the seeds.
   # shellcheck disable=SC2086 # FUZZ_ARGS is a list of flags
-  if "$BIN/$t" -max_total_time="$SECS" -print_final_stats=1 -timeout=10 \
+  if "$BIN/$t" -max_total_time="$SECS" -print_final_stats=1 -timeout=10 "${dict[@]}" \
     -artifact_prefix="$ROOT/fuzz/artifacts/$t/" ${FUZZ_ARGS:-} \
     "$WORK/$t/corpus" "$ROOT/fuzz/corpus/$t" >"$log" 2>&1; then
     status=ok

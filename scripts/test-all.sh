@@ -7,11 +7,15 @@ cd "$(dirname "$0")/.."
 step() { printf '\n==> %s\n' "$*"; }
 as_root() { if [ "$(id -u)" = 0 ]; then "$@"; else sudo "$@"; fi; }
 
-step "set-up: Cortex-M4F target and QEMU"
+step "set-up: Cortex-M4F target, QEMU, /usr/bin/time (peak memory)"
 rustup target list --installed | grep -qx thumbv7em-none-eabihf || rustup target add thumbv7em-none-eabihf
 if ! command -v qemu-system-arm >/dev/null; then
   as_root apt-get update -qq
   as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq qemu-system-arm
+fi
+if [ ! -x /usr/bin/time ]; then
+  as_root apt-get update -qq
+  as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq time
 fi
 rustup component list --installed | grep -q '^rustfmt' || rustup component add rustfmt
 rustup component list --installed | grep -q '^clippy' || rustup component add clippy
@@ -36,3 +40,7 @@ cargo test
 
 step "physics plant speed (target 2 s per 60 s of bench time; CI guard 6 s)"
 cargo bench -p simrod-plant --bench plant_speed -- --quick --guard 6
+
+step "peak memory of compare and diagnose on a 40 MB run (aims: 4x / 8x the file + 200 MB; the 300 MB run: --mb 300)"
+cargo build -p workbench --bin simrod
+cargo run -p workbench --example memory -- --mb 40 --guard

@@ -14,7 +14,7 @@ use crate::datadir::ModelData;
 use crate::error::CmdError;
 use crate::measure::write::{save, Format};
 use crate::measure::Measurement;
-use crate::simulate::{check_delay, RunSpec, SimulateArgs};
+use crate::simulate::{check_delay, check_run_size, RunSpec, SimulateArgs};
 use crate::twin::args::file_error;
 use crate::vbench::bench::{BenchRun, PlantKind};
 use crate::vbench::bench_effects::{load_bench_effects, BenchEffects};
@@ -253,6 +253,15 @@ pub fn bench(args: &BenchArgs) -> Result<Benched, CmdError> {
         }
         None => spec_and_effects(args, &run_args)?,
     };
+    let rows = spec.profile.duration_us() as f64 / f64::from(spec.config.dt_us);
+    check_run_size(
+        &args.run.out,
+        rows,
+        spec.config.dt_us,
+        &args.run.budget,
+        BENCH_ROW_BYTES,
+        BENCH_HOLD_BYTES,
+    )?;
     let perturb_seed = scenario.as_ref().map_or(args.perturb_maps, |s| s.perturb_maps);
     let perturbation = bench_data(&mut spec, &run_args, perturb_seed)?;
     let maps = match &spec.data {
@@ -279,6 +288,12 @@ pub fn bench(args: &BenchArgs) -> Result<Benched, CmdError> {
     let measurement = run.record(exact, &args.run.out);
     Ok(Benched { measurement, truth })
 }
+
+/// Bytes a bench row takes in the file: 141 measured (CSV, 17 channels), rounded up.
+const BENCH_ROW_BYTES: f64 = 160.0;
+/// Memory a bench row holds while the run is made: 256 measured (physics plant, 2.13 M
+/// rows), rounded up.
+const BENCH_HOLD_BYTES: f64 = 300.0;
 
 /// `--truth`, or the output's name with `.truth.toml`.
 fn truth_path(args: &BenchArgs) -> PathBuf {

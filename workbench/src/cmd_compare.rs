@@ -22,10 +22,11 @@ use crate::error::CmdError;
 use crate::history::{self, Entry};
 use crate::iterate;
 use crate::measure::{self, LoadOptions, Loaded, Mapping};
-use crate::twin::MeasuredTwin;
 use crate::report::{html, json, table};
 use crate::simulate::{parse_builtin, parse_scale};
 use crate::twin::args::{ModelArgs, SensorArgs};
+use crate::twin::{check_budget, MeasuredTwin};
+use simrod_io::budget::{BudgetArgs, DEFAULT_GB};
 
 /// What `simrod compare --help` explains after the options.
 const HOW: &str = "\
@@ -110,7 +111,15 @@ pub struct CompareArgs {
     /// (default: the previous history record's effects, when they differ from --effects).
     #[arg(long, value_name = "FILE.toml")]
     pub baseline_effects: Option<PathBuf>,
+
+    #[command(flatten)]
+    pub budget: BudgetArgs,
 }
+
+/// Peak memory of a comparison per sample of the twin's grid [bytes]: 620 measured on
+/// a 300 MB bench CSV (2.13 M samples, 15 channels; `cargo bench -p workbench --bench
+/// memory`), rounded up.
+pub const COMPARE_BYTES_PER_SAMPLE: f64 = 700.0;
 
 impl CompareArgs {
     /// `simrod compare MEAS` with every flag at its default (for callers in code, such as
@@ -130,6 +139,7 @@ impl CompareArgs {
             report: None,
             no_history: false,
             baseline_effects: None,
+            budget: BudgetArgs { budget_gb: DEFAULT_GB },
         }
     }
 }
@@ -175,9 +185,13 @@ pub fn run(args: &CompareArgs) -> Result<Compared, CmdError> {
     let load_opts = LoadOptions {
         mapping: args.mapping.as_deref().map(Mapping::load).transpose()?,
         allow_gaps: args.allow_gaps,
+        budget: args.budget.budget(),
         ..LoadOptions::default()
     };
     let loaded = measure::load_with(&args.meas, &load_opts)?;
+    let doing = format!("comparing {}", args.meas.display());
+    check_budget(&loaded.measurement.time_s, &args.budget.budget(), &doing, COMPARE_BYTES_PER_SAMPLE)
+        .map_err(|e| CmdError::Usage(format!("{}: {e}", args.meas.display())))?;
     let inputs = match args.profile {
         Some(which) => InputSource::Profile {
             which,

@@ -30,7 +30,8 @@ use crate::measure::{self, LoadOptions, Mapping, GAP_CHANNEL};
 use crate::report::table::columns;
 use crate::report::{change_pct, num, pct};
 use crate::twin::args::{ModelArgs, SensorArgs};
-use crate::twin::{Aligned, InputSource, MeasuredTwin};
+use crate::twin::{check_budget, Aligned, InputSource, MeasuredTwin};
+use simrod_io::budget::{BudgetArgs, DEFAULT_GB};
 
 /// Fewest fitted channels a diagnosis runs on: with fewer, most effects look alike.
 pub const MIN_CHANNELS: usize = 4;
@@ -88,7 +89,15 @@ pub struct DiagnoseArgs {
     /// Worker threads for the simulations (default: the machine's cores, at most 8).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=256), allow_negative_numbers = true)]
     pub threads: Option<u32>,
+
+    #[command(flatten)]
+    pub budget: BudgetArgs,
 }
+
+/// Peak memory of a diagnosis per sample of the twin's grid [bytes]: 435 measured on a
+/// 300 MB bench CSV (2.13 M samples, 15 channels; `cargo bench -p workbench --bench
+/// memory`), rounded up. The fits hold a fixed number of samples; this is the run.
+pub const DIAGNOSE_BYTES_PER_SAMPLE: f64 = 500.0;
 
 impl DiagnoseArgs {
     /// `simrod diagnose MEAS` with every flag at its default (for callers in code, such
@@ -102,6 +111,7 @@ impl DiagnoseArgs {
             write_effects: None,
             mapping: None,
             threads: None,
+            budget: BudgetArgs { budget_gb: DEFAULT_GB },
         }
     }
 }
@@ -173,9 +183,13 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
     }
     let load_opts = LoadOptions {
         mapping: args.mapping.as_deref().map(Mapping::load).transpose()?,
+        budget: args.budget.budget(),
         ..LoadOptions::default()
     };
     let loaded = measure::load_with(&args.meas, &load_opts)?;
+    let doing = format!("diagnosing {}", args.meas.display());
+    check_budget(&loaded.measurement.time_s, &args.budget.budget(), &doing, DIAGNOSE_BYTES_PER_SAMPLE)
+        .map_err(|e| CmdError::Usage(format!("{}: {e}", args.meas.display())))?;
     let meas = &loaded.measurement;
     let src = args.meas.display().to_string();
     if meas.gap_mask().iter().any(|g| *g) {

@@ -28,6 +28,7 @@ use crate::twin::args::file_error;
 pub use crate::twin::args::{
     check_supply_v, parse_supply_v, CouplingArg, ModelArgs, RatesArg, SpeedTargetArg, SUPPLY_V_RANGE,
 };
+use simrod_io::budget::BudgetArgs;
 
 /// Arguments of `simrod simulate`.
 #[derive(Debug, Clone, Args)]
@@ -60,6 +61,30 @@ pub struct SimulateArgs {
     /// Do not print the summary.
     #[arg(long, short = 'q')]
     pub quiet: bool,
+
+    #[command(flatten)]
+    pub budget: BudgetArgs,
+}
+
+/// Bytes a `simulate` CSV row takes: 336 measured (TP07, every channel), rounded up.
+pub const SIMULATE_ROW_BYTES: f64 = 360.0;
+
+/// Refuse, before the first step, a run of `rows` rows whose file (`write_per_row`
+/// bytes a row) or whose run held in memory (`hold_per_row`) exceeds the budget.
+pub fn check_run_size(
+    out: &Path,
+    rows: f64,
+    dt_us: u32,
+    budget: &BudgetArgs,
+    write_per_row: f64,
+    hold_per_row: f64,
+) -> Result<(), CmdError> {
+    let b = budget.budget();
+    let why = |per: f64| format!("{rows:.0} rows of {dt_us} µs, {per} bytes each");
+    let over = |m: String| CmdError::Usage(format!("--out {}: {m}", out.display()));
+    b.check(&format!("writing {}", out.display()), rows * write_per_row, &why(write_per_row))
+        .map_err(over)?;
+    b.check("holding the run", rows * hold_per_row, &why(hold_per_row)).map_err(over)
 }
 
 /// Exactly one of a built-in profile or a profile file.
@@ -287,6 +312,7 @@ pub fn execute(args: &SimulateArgs) -> Result<(), CmdError> {
     let spec = args.spec()?;
     check_out_path(&args.out)?;
     let sim = spec.simulation()?;
+    check_run_size(&args.out, sim.total_steps() as f64, args.dt_us, &args.budget, SIMULATE_ROW_BYTES, 0.0)?;
 
     let start = Instant::now();
     let mut summary = None;

@@ -227,3 +227,46 @@ fn concurrent_commands_keep_history_and_output_whole() {
         .collect();
     assert!(left.is_empty(), "temporary files left behind: {left:?}");
 }
+
+/// Refused with the estimate and the flag that lifts it, and nothing written.
+fn over_budget(dir: &Path, args: &[&str], estimate: &str) {
+    let o = simrod(dir, args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+    assert!(err.contains(estimate) && err.contains("--budget-gb"), "{args:?}: {err}");
+}
+
+#[test]
+fn runs_beyond_the_budget_are_refused_up_front_with_the_estimate() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path();
+    // One set of 1e6 s at 10 µs: 1e11 rows.
+    std::fs::write(p.join("long.toml"), "[[set]]\nduration_s = 1000000\nthrottle_pct = 10\n").unwrap();
+    let sim = ["simulate", "--profile-file", "long.toml", "--dt-us", "10", "--out", "x.csv"];
+    over_budget(p, &sim, "100000000000 rows of 10 µs");
+    over_budget(
+        p,
+        &["bench", "--profile-file", "long.toml", "--dt-us", "10", "--out", "x.csv"],
+        "rows of 10 µs",
+    );
+    assert!(!p.join("x.csv").exists());
+    // A file sampled every second: 60,000 rows (1 MB) become 6e7 samples on the 1 ms grid.
+    let mut csv = String::from("time [s],SuT Throttle [%],Dm Left [%],Dm Right [%],SuTMotorEnc [rpm]\n");
+    for k in 0..60_001 {
+        csv.push_str(&format!("{k},0,0,0,0\n"));
+    }
+    std::fs::write(p.join("slow.csv"), csv).unwrap();
+    over_budget(p, &["compare", "slow.csv"], "60000001 samples on the twin's grid");
+    over_budget(p, &["diagnose", "slow.csv"], "60000001 samples on the twin's grid");
+    assert!(!p.join("slow.simrod-history.jsonl").exists());
+    // A 10,000 s gap at 1 ms, interpolated across: 1e7 samples × 6 columns.
+    let gap = "time [s],SuT Throttle [%],Dm Left [%],Dm Right [%],SuTMotorEnc [rpm]\n\
+               0.001,0,0,0,0\n0.002,0,0,0,0\n0.003,0,0,0,0\n0.004,0,0,0,0\n10000.004,0,0,0,0\n";
+    std::fs::write(p.join("gap.csv"), gap).unwrap();
+    over_budget(p, &["compare", "gap.csv", "--allow-gaps", "--budget-gb", "0.5"], "resampling it would take");
+    // The flag lifts the limit: the same gap within a 4 GB budget is loaded (and then
+    // refused by the twin's own budget for the comparison, which is larger).
+    let o = simrod(p, &["compare", "gap.csv", "--allow-gaps", "--no-history"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("comparing gap.csv would take about 7.0 GB"), "{err}");
+}

@@ -203,7 +203,8 @@ pub fn compare_prepared(
     // Inputs for the cross-correlation: the set points (the correlator adds their
     // step-to-step change: the change at row k drove the step ending at row k).
     let names = ["SuT Throttle", "Dm Left", "Dm Right"];
-    let xin: Vec<(&str, &[f64])> = names.iter().zip(&al.grid.set_points).map(|(n, u)| (*n, u.as_slice())).collect();
+    let xin: Vec<(&str, &[f64])> =
+        names.iter().zip(&al.grid.set_points).map(|(n, u)| (*n, u.as_slice())).collect();
     let max_lag = (opts.max_lag_s / dt_s).round().max(0.0) as usize;
     let mut corr = residual::Correlator::new(&xin, n, dt_s, max_lag, opts.whiteness_lags);
     let window = ((opts.window_s / dt_s).round() as usize).max(1);

@@ -215,7 +215,8 @@ impl Correlator {
             scratch: vec![Complex::default(); scratch_len],
             inputs: Vec::new(),
         };
-        let centred_inputs: Vec<(&str, Vec<f64>)> = inputs.iter().map(|(name, x)| (*name, centred(x))).collect();
+        let centred_inputs: Vec<(&str, Vec<f64>)> =
+            inputs.iter().map(|(name, x)| (*name, centred(x))).collect();
         for pair in centred_inputs.chunks(2) {
             let a = &pair[0];
             let b = pair.get(1);
@@ -464,7 +465,10 @@ struct Lags {
 impl Lags {
     fn keep(buf: &[Complex<f64>], k: usize, part: fn(&Complex<f64>) -> f64) -> Self {
         let k = k.min(buf.len());
-        Self { head: buf[..k].iter().map(part).collect(), tail: buf[buf.len() - k..].iter().map(part).collect() }
+        Self {
+            head: buf[..k].iter().map(part).collect(),
+            tail: buf[buf.len() - k..].iter().map(part).collect(),
+        }
     }
 
     /// The correlation at lag `l` (0 beyond the kept lags).

@@ -61,8 +61,12 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
     // 0.25 s: slower than a tachometer's counting window, faster than most model error.
     // The noise is the one thing estimated on every sample.
     let h = ((0.125 / twin.dt_s()).round() as usize).max(5);
-    let noise: Vec<(&'static str, f64)> =
-        meas.iter().zip(&base_sim).zip(channels).map(|((m, s), c)| (c.name(), channel_sigma(m, s, h))).collect();
+    let noise: Vec<(&'static str, f64)> = meas
+        .iter()
+        .zip(&base_sim)
+        .zip(channels)
+        .map(|((m, s), c)| (c.name(), channel_sigma(m, s, h)))
+        .collect();
     let weights = noise.iter().map(|(_, s)| 1.0 / (s * s)).collect();
     let base_sim: Vec<Vec<f32>> = base_sim.into_iter().map(|c| every(c, stride)).collect();
     let base: Vec<Vec<f64>> = base_sim.iter().map(|c| c.iter().map(|v| f64::from(*v)).collect()).collect();

@@ -243,13 +243,7 @@ fn profile_scan(pb: &Problem, s0: &ParamSpec, fit: &mut Fit) {
 /// Write a refit into its candidate: values and their uncertainty `std`, the reduction
 /// measured on the simulator, per-channel and per-region errors. Significant: some
 /// parameter moved from its start by more than 2 σ (never with an undetermined σ).
-pub(super) fn confirm(
-    cand: &mut Candidate,
-    fit: &Fit,
-    std: &[f64],
-    specs: &[&ParamSpec],
-    p: &Prepared,
-) {
+pub(super) fn confirm(cand: &mut Candidate, fit: &Fit, std: &[f64], specs: &[&ParamSpec], p: &Prepared) {
     cand.confirmed_reduction = Some(((p.e0 - fit.energy) / p.excess).clamp(0.0, 1.0));
     cand.significant = false;
     for ((fp, &v), (sd, s)) in cand.params.iter_mut().zip(&fit.values).zip(std.iter().zip(specs)) {
@@ -379,7 +373,6 @@ mod tests {
     #[test]
     fn significance_needs_a_finite_sigma() {
         let (twin, p) = setup(100);
-        let o = Options::default();
         let sa = spec("coulomb_nm", 60.0);
         let fit = Fit {
             values: vec![5.0],

@@ -1,8 +1,10 @@
 //! Everything the workbench reads and writes: measurement files (CSV, MAT) with units,
 //! mappings and resampling, model data directories, effect and profile files, simulation
-//! CSVs, atomic writes, content hashes, and the errors that name file, line and column.
+//! CSVs, atomic writes, content hashes, memory and disk budgets, and the errors that name
+//! file, line and column.
 
 pub mod atomic;
+pub mod budget;
 pub mod datadir;
 pub mod effects_file;
 pub mod error;

@@ -21,7 +21,10 @@ use model_core::{
     SpeedTarget,
 };
 
-pub use measured::{Aligned, InputSource, MeasuredTwin, Paired, RunGrid, TwinError, FALLBACK_DT_US};
+pub use measured::{
+    check_budget, grid_samples, Aligned, InputSource, MeasuredTwin, Paired, RunGrid, TwinError,
+    FALLBACK_DT_US,
+};
 pub use sensors::SensorModel;
 use simrod_io::datadir::ModelData;
 

@@ -21,6 +21,7 @@ use model_core::model::DT_US_RANGE;
 use model_core::{Builtin, Channel, Effects, Inputs, Profile, ProfileSet, SetPoints, MEASURED};
 
 use super::ModelOptions;
+use simrod_io::budget::Budget;
 use simrod_io::measure::resample::Interp;
 use simrod_io::measure::{Measurement, GAP_CHANNEL, SETPOINT_LOAD_L, SETPOINT_LOAD_R, SETPOINT_THROTTLE};
 
@@ -65,6 +66,8 @@ pub enum TwinError {
     Window,
     #[error("{0}")]
     Implausible(String),
+    #[error("{0}")]
+    OverBudget(String),
 }
 
 /// One channel, measured and simulated on the comparison grid.
@@ -228,7 +231,12 @@ impl MeasuredTwin {
         self.pair(effects, measured, self.grid.clone())
     }
 
-    fn pair(&self, effects: Effects, measured: Vec<(Channel, Vec<f64>)>, grid: RunGrid) -> Result<Aligned, TwinError> {
+    fn pair(
+        &self,
+        effects: Effects,
+        measured: Vec<(Channel, Vec<f64>)>,
+        grid: RunGrid,
+    ) -> Result<Aligned, TwinError> {
         let mut wanted: Vec<Channel> = measured.iter().map(|(c, _)| *c).collect();
         wanted.extend([Channel::ILmlPhase, Channel::ILmrPhase, Channel::SuTMotorEnc]);
         let mut sim = self.simulate(effects, &wanted)?;
@@ -241,12 +249,23 @@ impl MeasuredTwin {
             .map(|((ch, mut m), s)| {
                 let s = widen(s);
                 snap_to_f32(&mut m, &s);
-                Paired { name: ch.name().to_string(), unit: ch.unit().to_string(), derived: false, meas: m, sim: s }
+                Paired {
+                    name: ch.name().to_string(),
+                    unit: ch.unit().to_string(),
+                    derived: false,
+                    meas: m,
+                    sim: s,
+                }
             })
             .collect();
         let derived = derive_powers(&channels);
         channels.extend(derived);
-        Ok(Aligned { grid, channels, phase_current: [widen(phase_l), widen(phase_r)], sim_speed: widen(speed) })
+        Ok(Aligned {
+            grid,
+            channels,
+            phase_current: [widen(phase_l), widen(phase_r)],
+            sim_speed: widen(speed),
+        })
     }
 }
 
@@ -274,7 +293,39 @@ fn recorded_set_points(meas: &Measurement, grid: &GridChoice) -> Result<[Vec<f64
     got.try_into().map_err(|_| TwinError::NoSetPoints(vec![SETPOINT_THROTTLE.into()]))
 }
 
+/// The comparison grid, planned before anything is allocated.
+struct GridPlan {
+    dt_us: u32,
+    /// `Some((t0, samples))`: a 1 ms grid from `t0`; `None`: the file's samples.
+    resample: Option<(f64, usize)>,
+    note: String,
+}
+
+/// Samples on the comparison grid of a run with sample times `time` (the file's count
+/// unless it is resampled to 1 ms), and how the grid was chosen: what a command checks
+/// against its memory budget before the run is put on the grid.
+pub fn grid_samples(time: &[f64]) -> Result<(usize, String), TwinError> {
+    let plan = plan_grid(time)?;
+    Ok((plan.resample.map_or(time.len(), |(_, n)| n), plan.note))
+}
+
+/// Refuse, before anything is put on the grid, a run whose comparison would hold more
+/// than `budget` at `per_sample` bytes per grid sample (`doing` names the command's
+/// work in the message).
+pub fn check_budget(time: &[f64], budget: &Budget, doing: &str, per_sample: f64) -> Result<(), TwinError> {
+    let (n, note) = grid_samples(time)?;
+    let why = format!("{n} samples on the twin's grid, {per_sample} bytes each; {note}");
+    budget.check(doing, n as f64 * per_sample, &why).map_err(TwinError::OverBudget)
+}
+
 fn choose_grid(time: &[f64]) -> Result<GridChoice, TwinError> {
+    let plan = plan_grid(time)?;
+    let dt = f64::from(plan.dt_us) * 1e-6;
+    let resample_to = plan.resample.map(|(t0, n)| (0..n).map(|j| t0 + j as f64 * dt).collect());
+    Ok(GridChoice { dt_us: plan.dt_us, resample_to, note: plan.note })
+}
+
+fn plan_grid(time: &[f64]) -> Result<GridPlan, TwinError> {
     let n = time.len();
     let (Some(&t0), Some(&t1)) = (time.first(), time.last()) else {
         return Err(TwinError::TooShort(n));
@@ -296,16 +347,15 @@ fn choose_grid(time: &[f64]) -> Result<GridChoice, TwinError> {
     let whole = (us - rounded).abs() * (n - 1) as f64 <= 0.01 * rounded;
     let in_range = rounded >= f64::from(DT_US_RANGE.0) && rounded <= f64::from(DT_US_RANGE.1);
     if uniform && whole && in_range {
-        return Ok(GridChoice {
+        return Ok(GridPlan {
             dt_us: rounded as u32,
-            resample_to: None,
+            resample: None,
             note: format!("model step = sample interval = {rounded} µs"),
         });
     }
     let dt = f64::from(FALLBACK_DT_US) * 1e-6;
-    let steps = ((t1 - t0) / dt + 1e-9).floor() as usize;
-    let grid: Vec<f64> = (0..=steps).map(|j| t0 + j as f64 * dt).collect();
-    if grid.len() < 2 {
+    let steps = ((t1 - t0) / dt + 1e-9).floor();
+    if steps < 1.0 {
         return Err(TwinError::ShortSpan { span_s: t1 - t0, rows: n });
     }
     let why = if !uniform {
@@ -315,9 +365,10 @@ fn choose_grid(time: &[f64]) -> Result<GridChoice, TwinError> {
     } else {
         format!("the sample interval {rounded} µs is outside {}..{} µs", DT_US_RANGE.0, DT_US_RANGE.1)
     };
-    Ok(GridChoice {
+    Ok(GridPlan {
         dt_us: FALLBACK_DT_US,
-        resample_to: Some(grid),
+        // Saturating: a span beyond usize is refused by the caller's budget.
+        resample: Some((t0, steps.min(usize::MAX as f64 / 2.0) as usize + 1)),
         note: format!("{why}: measurement resampled (linear) to 1 ms, model step 1 ms"),
     })
 }

@@ -24,6 +24,7 @@ mod tests;
 
 use std::path::Path;
 
+use crate::budget::Budget;
 pub use mapping::Mapping;
 
 /// Errors of the readers: a [`crate::error::FileError`], `file:line:col: message`.
@@ -56,11 +57,19 @@ pub struct LoadOptions {
     pub gap_samples: f64,
     /// Channels the analysis needs (bench names, after renaming).
     pub required: Vec<String>,
+    /// Most memory loading may take (the file, its values, a resampled grid).
+    pub budget: Budget,
 }
 
 impl Default for LoadOptions {
     fn default() -> Self {
-        Self { mapping: None, allow_gaps: false, gap_samples: resample::GAP_SAMPLES, required: Vec::new() }
+        Self {
+            mapping: None,
+            allow_gaps: false,
+            gap_samples: resample::GAP_SAMPLES,
+            required: Vec::new(),
+            budget: Budget::default(),
+        }
     }
 }
 
@@ -85,6 +94,11 @@ pub fn load(path: &Path, mapping: Option<&Path>) -> Result<Measurement, MeasureE
 /// Load with explicit options; the format follows the extension.
 pub fn load_with(path: &Path, opts: &LoadOptions) -> Result<Loaded, MeasureError> {
     format_of(path)?;
+    let size = std::fs::metadata(path).map_err(|e| MeasureError::io(path, &e))?.len() as f64;
+    // The bytes, then one f64 per value (a CSV value is 8 to 15 characters).
+    opts.budget
+        .check("reading it", READ_COST * size, "the file and its values")
+        .map_err(|m| MeasureError::whole(path, m))?;
     let bytes = std::fs::read(path).map_err(|e| MeasureError::io(path, &e))?;
     parse_bytes(path, bytes, opts)
 }
@@ -99,6 +113,9 @@ pub fn parse_bytes(path: &Path, bytes: Vec<u8>, opts: &LoadOptions) -> Result<Lo
     };
     table::finish(raw, opts)
 }
+
+/// Memory to read a file, per byte of the file (measured: 2.0 for a bench CSV).
+const READ_COST: f64 = 2.5;
 
 enum Format {
     Csv,

@@ -21,8 +21,6 @@ use simrod_numerics::stats::median;
 pub const JITTER_TOL: f64 = 0.01;
 /// Default: an interval longer than this many median intervals is a gap.
 pub const GAP_SAMPLES: f64 = 5.0;
-/// Largest grid resampling may build (guards against a huge allowed gap).
-const MAX_GRID: usize = 100_000_000;
 
 /// A uniform grid to resample onto, with the gaps it spans.
 #[derive(Debug, Clone, PartialEq)]
@@ -35,7 +33,12 @@ pub struct Grid {
 }
 
 /// Check the time column; `Some(grid)` when the run must be resampled.
-pub(crate) fn check_time(raw: &RawTable, t: &[f64], opts: &LoadOptions) -> Result<Option<Grid>, FileError> {
+pub(crate) fn check_time(
+    raw: &RawTable,
+    t: &[f64],
+    channels: usize,
+    opts: &LoadOptions,
+) -> Result<Option<Grid>, FileError> {
     let name = raw.time.name.as_str();
     for (i, w) in t.windows(2).enumerate() {
         if w[1] <= w[0] {
@@ -76,12 +79,10 @@ pub(crate) fn check_time(raw: &RawTable, t: &[f64], opts: &LoadOptions) -> Resul
     }
     let span = t[t.len() - 1] - t[0];
     let n = (span / m + 1e-6).floor() + 1.0;
-    if !(n.is_finite() && n <= MAX_GRID as f64) {
-        return Err(FileError::whole(
-            &raw.source,
-            format!("resampling would need {n} samples at the median interval {m} s"),
-        ));
-    }
+    // Every column twice (as read and on the grid), 8 bytes a value.
+    let bytes = n * (channels + 2) as f64 * 16.0;
+    let why = format!("{n} samples at the median interval {m} s, {channels} channels");
+    opts.budget.check("resampling it", bytes, &why).map_err(|e| FileError::whole(&raw.source, e))?;
     Ok(Some(Grid { t0: t[0], dt: m, n: n as usize, gaps }))
 }
 

@@ -95,7 +95,7 @@ pub(crate) fn finish(mut raw: RawTable, opts: &LoadOptions) -> Result<Loaded, Fi
     if time.is_empty() {
         return Err(FileError::whole(&raw.source, "no samples (empty file)"));
     }
-    let grid = resample::check_time(&raw, &time, opts)?;
+    let grid = resample::check_time(&raw, &time, signals.len(), opts)?;
     let mut m = Measurement { source: raw.source.clone(), time_s: time, signals };
     let mut gaps = Vec::new();
     let mut resampled_dt = None;
