@@ -58,6 +58,10 @@ fn dispatch(command: Command) -> Result<(), CmdError> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse(); // clap reports its own usage errors, with exit code 2
+                            // Ctrl-C or a kill during a write leaves no temporary file behind.
+    if let Err(e) = workbench::atomic::clean_up_on_signals() {
+        eprintln!("warning: cannot watch for signals ({e}); an interrupted write may leave a .tmp file");
+    }
     match dispatch(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -270,3 +270,40 @@ fn runs_beyond_the_budget_are_refused_up_front_with_the_estimate() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("comparing gap.csv would take about 7.0 GB"), "{err}");
 }
+
+/// The temporary files in `dir` (atomic writes in progress or left behind).
+fn temp_files(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect()
+}
+
+#[test]
+fn a_signal_during_a_write_leaves_no_temporary_file() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path();
+    // 2000 s at 10 µs: minutes of writing, so the signal lands mid-write.
+    std::fs::write(p.join("long.toml"), "[[set]]\nduration_s = 2000\nthrottle_pct = 30\n").unwrap();
+    for (signal, code) in [("INT", 130), ("TERM", 143), ("HUP", 129)] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_simrod"))
+            .current_dir(p)
+            .args(["simulate", "--profile-file", "long.toml", "--dt-us", "10", "--budget-gb", "100"])
+            .args(["-q", "--out", "out.csv"])
+            .spawn()
+            .unwrap();
+        let start = std::time::Instant::now();
+        while temp_files(p).is_empty() && start.elapsed().as_secs() < 60 {
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        assert!(!temp_files(p).is_empty(), "no write in progress to interrupt");
+        std::thread::sleep(std::time::Duration::from_millis(300));
+        let pid = child.id().to_string();
+        assert!(Command::new("kill").args([&format!("-{signal}"), &pid]).status().unwrap().success());
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(code), "SIG{signal}");
+        assert!(temp_files(p).is_empty(), "SIG{signal} left {:?}", temp_files(p));
+        assert!(!p.join("out.csv").exists(), "SIG{signal}: a half-written output");
+    }
+}

@@ -6,6 +6,10 @@
 //! target; the directory is fsynced too so the rename survives a power cut. On any
 //! error, or a panic in the writer, the temporary file is removed.
 //!
+//! A signal (SIGINT, SIGTERM, SIGHUP) ends the process between two writes: with
+//! [`clean_up_on_signals`] installed, the temporary files of unfinished writes are
+//! removed first, and the process exits with 128 + the signal's number.
+//!
 //! A symlink is followed (the link stays, its target gets the new contents). A target
 //! that exists and is neither a regular file nor a directory (`/dev/null`, a FIFO,
 //! `/dev/stdout`) is written directly: renaming over it would replace the device node,
@@ -15,6 +19,7 @@ use std::fs::{self, File, OpenOptions};
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::{Mutex, MutexGuard};
 
 /// Buffer between the writer closure and the file: big enough that a CSV row never
 /// becomes a syscall of its own.
@@ -22,6 +27,36 @@ const BUF_BYTES: usize = 1 << 16;
 
 /// Distinguishes temporary files of concurrent writes within one process.
 static COUNTER: AtomicU32 = AtomicU32::new(0);
+
+/// The temporary files of the writes in progress. Held while a temporary file is
+/// created or renamed, and by the signal thread while it removes them and exits: a
+/// write is either finished (renamed) or cleaned up, never left behind.
+static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn live() -> MutexGuard<'static, Vec<PathBuf>> {
+    // A panic while holding it cannot leave the list inconsistent (push/retain only).
+    LIVE.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Remove the temporary files of unfinished writes when the process gets SIGINT,
+/// SIGTERM or SIGHUP, then exit with 128 + the signal. Call once, at start-up, in a
+/// binary (a library must not take over a process's signals). The handler runs on a
+/// thread of its own, so it may lock and delete (nothing runs in signal context).
+pub fn clean_up_on_signals() -> io::Result<()> {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP])?;
+    std::thread::Builder::new().name("signals".into()).spawn(move || {
+        if let Some(sig) = signals.forever().next() {
+            let files = live();
+            for f in files.iter() {
+                let _ = fs::remove_file(f);
+            }
+            // Exit with the lock held: no write can rename its file in between.
+            std::process::exit(128 + sig);
+        }
+    })?;
+    Ok(())
+}
 
 /// Write `path` through `write`, atomically. The closure gets a buffered writer; its
 /// error (or any I/O error of the flush, sync or rename) is returned unchanged and
@@ -54,8 +89,12 @@ where
     file.sync_all()?;
     drop(file);
 
-    fs::rename(&guard.path, path)?;
-    guard.armed = false;
+    {
+        let mut files = live();
+        fs::rename(&guard.path, path)?;
+        guard.armed = false;
+        files.retain(|f| *f != guard.path);
+    }
     sync_dir(&dir);
     Ok(())
 }
@@ -98,8 +137,12 @@ fn create_temp(dir: &Path, name: &str) -> io::Result<(File, PathBuf)> {
     for _ in 0..16 {
         let n = COUNTER.fetch_add(1, Ordering::Relaxed);
         let tmp = dir.join(format!(".{name}.{pid}.{n}.tmp"));
+        let mut files = live();
         match OpenOptions::new().write(true).create_new(true).open(&tmp) {
-            Ok(f) => return Ok((f, tmp)),
+            Ok(f) => {
+                files.push(tmp.clone());
+                return Ok((f, tmp));
+            }
             Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last_err = Some(e),
             Err(e) => return Err(e),
         }
@@ -127,7 +170,9 @@ struct TempGuard {
 impl Drop for TempGuard {
     fn drop(&mut self) {
         if self.armed {
+            let mut files = live();
             let _ = fs::remove_file(&self.path);
+            files.retain(|f| *f != self.path);
         }
     }
 }
