@@ -25,7 +25,7 @@ use crate::measure::{self, LoadOptions, Loaded, Mapping};
 use crate::report::{html, json, table};
 use crate::simulate::{parse_builtin, parse_scale};
 use crate::twin::args::{ModelArgs, SensorArgs};
-use crate::twin::{check_budget, MeasuredTwin};
+use crate::twin::{check_budget, plausible, MeasuredTwin};
 use simrod_io::budget::{BudgetArgs, DEFAULT_GB};
 
 /// What `simrod compare --help` explains after the options.
@@ -112,6 +112,12 @@ pub struct CompareArgs {
     #[arg(long, value_name = "FILE.toml")]
     pub baseline_effects: Option<PathBuf>,
 
+    /// Leave out (and count, per channel) samples beyond 100 times their channel's
+    /// operating span instead of refusing the file: corrupt samples in an otherwise
+    /// good run. Set points are never masked.
+    #[arg(long)]
+    pub mask_implausible: bool,
+
     #[command(flatten)]
     pub budget: BudgetArgs,
 }
@@ -139,6 +145,7 @@ impl CompareArgs {
             report: None,
             no_history: false,
             baseline_effects: None,
+            mask_implausible: false,
             budget: BudgetArgs { budget_gb: DEFAULT_GB },
         }
     }
@@ -188,7 +195,11 @@ pub fn run(args: &CompareArgs) -> Result<Compared, CmdError> {
         budget: args.budget.budget(),
         ..LoadOptions::default()
     };
-    let loaded = measure::load_with(&args.meas, &load_opts)?;
+    let mut loaded = measure::load_with(&args.meas, &load_opts)?;
+    if args.mask_implausible {
+        let masked = plausible::mask(&mut loaded.measurement);
+        loaded.notes.extend(masked);
+    }
     let doing = format!("comparing {}", args.meas.display());
     check_budget(&loaded.measurement.time_s, &args.budget.budget(), &doing, COMPARE_BYTES_PER_SAMPLE)
         .map_err(|e| CmdError::Usage(format!("{}: {e}", args.meas.display())))?;

@@ -177,6 +177,17 @@ fn implausible_values_stop_the_analysis_and_dead_channels_are_named() {
         assert_eq!(o.status.code(), Some(2), "{cmd}: {err}");
         assert!(err.contains("C_Kistler_L at t = 0.1 s is 1e308"), "{cmd}: {err}");
     }
+    // With --mask-implausible compare leaves the sample out and says so; the figures
+    // are those of the clean run within a sample's share.
+    let o = simrod(p, &["compare", "bad.csv", "--no-history", "--mask-implausible", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let masked: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(masked.to_string().contains("C_Kistler_L: 1 sample(s) beyond ±27600 N m masked"), "{masked}");
+    let o = simrod(p, &["compare", "good.csv", "--no-history", "--json"]);
+    let clean: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let rmse = |v: &serde_json::Value| v["channels"]["C_Kistler_L"]["rmse"].as_f64().unwrap();
+    let (a, b) = (rmse(&masked), rmse(&clean));
+    assert!(a.is_finite() && (a - b).abs() <= 0.01 * b, "masked RMSE {a} vs clean {b}");
     std::fs::write(p.join("dead.csv"), edit(3, &|_| Some("-0".to_owned()))).unwrap();
     let o = simrod(p, &["compare", "dead.csv", "--no-history"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
