@@ -13,6 +13,7 @@ pub mod metrics;
 pub mod regions;
 pub mod residual;
 pub mod spans;
+pub mod structure;
 
 #[cfg(test)]
 mod tests;
@@ -83,6 +84,10 @@ pub struct ChannelResult {
     pub worst_spans: Vec<Span>,
     pub whiteness: Whiteness,
     pub cross: Vec<CrossPeak>,
+    /// Windows of this channel's residual with structure beyond noise (the test of
+    /// [`structure`], at [`structure::ALPHA`] over every window of every measured
+    /// channel), in time order; derived channels are not tested (their inputs are).
+    pub structure: Vec<structure::Window>,
 }
 
 impl ChannelResult {
@@ -126,6 +131,9 @@ pub struct CompareResult {
     /// Set points the twin ran on: throttle, load L, load R [%].
     pub inputs: [Vec<f64>; 3],
     pub channels: Vec<ChannelResult>,
+    /// Windows tested for structure over all measured channels (the multiple-testing
+    /// family of [`ChannelResult::structure`]).
+    pub structure_tested: usize,
     pub regions: Classification,
     /// Caveats worth telling the user.
     pub notes: Vec<String>,
@@ -213,6 +221,7 @@ pub fn compare_prepared(
     // residuals are never all held at once.
     let (time_s, gaps) = (&al.grid.time_s, &al.grid.gaps);
     let mut channels = Vec::with_capacity(al.channels.len());
+    let mut tested_windows: Vec<Option<structure::ChannelWindows>> = Vec::with_capacity(al.channels.len());
     let mut pending = al.channels.into_iter();
     while let Some(first) = pending.next() {
         let pair: Vec<(Paired, Vec<f64>, Metrics)> = std::iter::once(first)
@@ -229,6 +238,9 @@ pub fn compare_prepared(
             let b = budget::budget(&classes.classes, &e);
             let top = budget::top_combined(&b, opts.top_regions);
             let worst = spans::worst_spans(time_s, &e, window, opts.spans);
+            let resolution = Channel::from_name(&p.name).and_then(|c| opts.model.sensors.counting_rms(c));
+            tested_windows
+                .push((!p.derived).then(|| structure::windows(&e, dt_s, resolution.unwrap_or(0.0))));
             let mut whiteness = st.whiteness;
             if whiteness.verdict == residual::Verdict::Coloured && within_resolution(opts, &p.name, m.rmse) {
                 whiteness.verdict = residual::Verdict::Resolution;
@@ -245,8 +257,14 @@ pub fn compare_prepared(
                 worst_spans: worst,
                 whiteness,
                 cross: st.cross,
+                structure: Vec::new(),
             });
         }
+    }
+    let structure_tested: usize = tested_windows.iter().flatten().map(|w| w.windows.len()).sum();
+    let th = structure::threshold(structure_tested);
+    for (c, w) in channels.iter_mut().zip(&tested_windows) {
+        c.structure = w.iter().flat_map(|w| w.flagged(th)).copied().collect();
     }
     let t2 = Instant::now();
 
@@ -286,6 +304,7 @@ pub fn compare_prepared(
         time_s: al.grid.time_s,
         inputs: al.grid.set_points,
         channels,
+        structure_tested,
         regions: classes,
         notes,
         timing: (t1.duration_since(t0).as_secs_f64(), t2.duration_since(t1).as_secs_f64()),

@@ -41,6 +41,12 @@ pub trait Twin: Sync {
     /// Simulated `[channel][sample]`.
     fn run(&self, fx: &Effects) -> Result<Vec<Vec<f32>>, String>;
 
+    /// Per channel, the RMS error its sensor makes by design (a tachometer's counting),
+    /// [unit]; 0 for none. Structure within it is not a model error.
+    fn resolution(&self) -> Vec<f64> {
+        vec![0.0; self.channels().len()]
+    }
+
     /// Every `stride`-th sample of [`Twin::run`] (from the first): what the fits read.
     /// A long run's full output is then held only while it is reduced.
     fn run_every(&self, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
@@ -291,6 +297,7 @@ fn stages(
         s: &s,
         o,
         channels: twin.channels(),
+        resolution: twin.resolution(),
         dt: twin.dt_s(),
         cands: &cands,
         fits: &fits,

@@ -4,8 +4,8 @@
 
 use model_core::Effects;
 
+use simrod_compare::structure::noise_sigma;
 use simrod_io::progress::Progress;
-use simrod_numerics::stats::moving_mean;
 
 use super::engine::{every, Options, RegionChange, Twin};
 
@@ -102,23 +102,6 @@ fn channel_sigma(m: &[f64], s: &[f32], h: usize) -> f64 {
     noise_sigma(&r, h).max(1e-4 * rms).max(1e-9)
 }
 
-/// Noise σ of a residual: the part faster than a `2h+1`-sample moving average, corrected
-/// for the average's own share so that white noise gives an unbiased estimate. Not
-/// trimmed: bench noise grows at the operating limits, and trimming would cut exactly
-/// that part. 0 when the series is shorter than two windows.
-pub(super) fn noise_sigma(r: &[f64], h: usize) -> f64 {
-    let n = r.len();
-    let k = 2 * h + 1;
-    if n < 2 * k {
-        return 0.0;
-    }
-    let mean = moving_mean(r, h);
-    let hp = (h..n - h).map(|t| r[t] - mean[t]);
-    let var = hp.map(|v| v * v).sum::<f64>() / (n - 2 * h) as f64;
-    // x - mean(k) of white noise has variance σ²(1 - 1/k).
-    (var * k as f64 / (k as f64 - 1.0)).sqrt()
-}
-
 /// One simulation's outcome: `[channel][sample]` or why it failed.
 type RunResult = Result<Vec<Vec<f32>>, String>;
 
@@ -206,43 +189,9 @@ pub(super) fn region_errors(
 
 #[cfg(test)]
 pub(super) mod tests {
-    use super::*;
-
     /// Standard normal draws, deterministic per seed.
     pub(crate) fn gaussian(seed: u64, n: usize) -> Vec<f64> {
         let mut rng = simrod_numerics::stats::Rng::new(seed, 0);
         (0..n).map(|_| rng.gauss()).collect()
-    }
-
-    /// On white noise of known σ the estimate is unbiased: with 200 000 samples its own
-    /// relative scatter is about `1/sqrt(2n)` = 0.16 %, so 1 % is six of those; without
-    /// the `k/(k-1)` correction a 11-sample window would read 4.7 % low and fail.
-    #[test]
-    fn noise_sigma_is_unbiased_on_white_noise() {
-        for (seed, sigma, h) in [(1, 1.0, 5), (2, 0.003, 5), (3, 250.0, 20)] {
-            let r: Vec<f64> = gaussian(seed, 200_000).iter().map(|v| sigma * v).collect();
-            let est = noise_sigma(&r, h);
-            assert!((est / sigma - 1.0).abs() < 0.01, "σ {sigma}, h {h}: estimated {est}");
-        }
-    }
-
-    /// A slow model error under the noise does not count as noise (that is the point of
-    /// the moving average): a sine of 20x the noise amplitude with a period of 2 000
-    /// samples adds less than 1 % to the estimate.
-    #[test]
-    fn noise_sigma_ignores_slow_model_error() {
-        let r: Vec<f64> = gaussian(4, 100_000)
-            .iter()
-            .enumerate()
-            .map(|(t, v)| v + 20.0 * (2.0 * std::f64::consts::PI * t as f64 / 2000.0).sin())
-            .collect();
-        let est = noise_sigma(&r, 5);
-        assert!((est - 1.0).abs() < 0.01, "estimated {est}");
-    }
-
-    #[test]
-    fn noise_sigma_of_a_short_series_is_zero() {
-        assert_eq!(noise_sigma(&[1.0; 21], 5), 0.0);
-        assert_eq!(noise_sigma(&[], 5), 0.0);
     }
 }

@@ -28,6 +28,10 @@ impl Twin for RecordedTwin {
     fn run(&self, fx: &Effects) -> Result<Vec<Vec<f32>>, String> {
         self.twin.simulate(*fx, &self.channels).map_err(|e| e.to_string())
     }
+
+    fn resolution(&self) -> Vec<f64> {
+        self.channels.iter().map(|c| self.twin.model.sensors.counting_rms(*c).unwrap_or(0.0)).collect()
+    }
 }
 
 /// Set points of a profile run, as a recorded run would carry them.

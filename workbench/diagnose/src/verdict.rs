@@ -10,6 +10,7 @@ use super::library::{with_values, ParamSpec};
 use super::preparation::{channel_energies, Prepared};
 use super::refit::Fit;
 use super::sensitivities::Sensitivities;
+use simrod_compare::structure;
 
 /// Refitted and significant candidates first, by confirmed reduction; then the rest.
 pub(super) fn rank(cands: &[Candidate]) -> Vec<Candidate> {
@@ -28,6 +29,8 @@ pub(super) struct Evidence<'a> {
     pub s: &'a Sensitivities,
     pub o: &'a Options,
     pub channels: &'a [Channel],
+    /// Per channel, its sensor's resolution ([`super::engine::Twin::resolution`]).
+    pub resolution: Vec<f64>,
     /// Sample interval [s].
     pub dt: f64,
     /// Candidates in library order (as the refits index them).
@@ -47,6 +50,11 @@ pub(super) struct Verdict {
 }
 
 impl Evidence<'_> {
+    /// [s] between fit samples (the series in [`Prepared`] hold only those).
+    fn dt_fit(&self) -> f64 {
+        self.dt * self.p.stride as f64
+    }
+
     /// The refit of `effect`, if it was refitted.
     fn after(&self, effect: &str) -> Option<&Fit> {
         self.fits.iter().find(|(ci, _)| self.cands[*ci].effect == effect).map(|(_, f)| f)
@@ -101,12 +109,44 @@ impl Evidence<'_> {
         let total: f64 = shares.iter().map(|(_, e)| e.max(0.0)).sum::<f64>().max(1e-300);
         shares.sort_by(|a, b| b.1.total_cmp(&a.1));
         let (c, e) = shares.first().copied().unwrap_or((0, 0.0));
-        let (at, win) = worst_window(&p.meas[c], &sim[c], ((2.0 / self.dt).round() as usize).max(1));
+        let dt = self.dt_fit();
+        let (at, win) = worst_window(&p.meas[c], &sim[c], ((2.0 / dt).round() as usize).max(1));
         Location {
             channel: self.channels[c].name(),
             share: e.max(0.0) / total,
-            window_s: (at as f64 * self.dt, (at + win) as f64 * self.dt),
+            window_s: (at as f64 * dt, (at + win) as f64 * dt),
         }
+    }
+
+    /// The most significant window of structure left in `sim`'s residual over all
+    /// channels (the test `compare` reports: [`structure`]), if any window is flagged.
+    fn structure_left(&self, sim: &[Vec<f32>]) -> Option<Structure> {
+        let p = self.p;
+        let dt = self.dt_fit();
+        let per_channel: Vec<structure::ChannelWindows> = p
+            .meas
+            .iter()
+            .zip(sim)
+            .zip(&self.resolution)
+            .map(|((m, s), res)| {
+                let r: Vec<f64> = m.iter().zip(s).map(|(a, b)| f64::from(*b) - a).collect();
+                structure::windows(&r, dt, *res)
+            })
+            .collect();
+        let tested: usize = per_channel.iter().map(|c| c.windows.len()).sum();
+        let th = structure::threshold(tested);
+        let flagged: Vec<(usize, &structure::Window)> =
+            per_channel.iter().enumerate().flat_map(|(c, w)| w.flagged(th).map(move |x| (c, x))).collect();
+        let (c, w) = flagged.iter().min_by(|a, b| a.1.p.total_cmp(&b.1.p))?;
+        Some(Structure {
+            channel: self.channels[*c].name(),
+            unit: self.channels[*c].unit(),
+            window_s: (w.start as f64 * dt, (w.start + w.len) as f64 * dt),
+            mean: w.mean,
+            p: w.p,
+            flagged: flagged.len(),
+            tested,
+        })
     }
 
     /// Where the rest is, after the lead's refit (or the current model without one).
@@ -159,14 +199,21 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
             );
             (VerdictKind::Partial, text, Some(loc))
         }
-        _ if ev.p.excess_ratio <= o.noise_like_ratio => (
-            VerdictKind::NothingMissing,
-            format!(
-                "no effect is missing: the residual is noise-like (weighted energy {:.2}x what the estimated noise gives)",
-                ev.p.excess_ratio
+        _ if ev.p.excess_ratio <= o.noise_like_ratio => match ev.structure_left(&ev.p.base_sim) {
+            None => (
+                VerdictKind::NothingMissing,
+                format!(
+                    "no effect is missing: the residual is noise-like (weighted energy {:.2}x what the estimated noise gives) in every channel and every {} s window",
+                    ev.p.excess_ratio,
+                    structure::WINDOW_S
+                ),
+                None,
             ),
-            None,
-        ),
+            Some(st) => {
+                let loc = Location { channel: st.channel, share: 1.0, window_s: st.window_s };
+                (VerdictKind::Unexplained, local_structure(ev.p.excess_ratio, &st), Some(loc))
+            }
+        },
         Some(l) if l.reduction() >= o.unexplained_fraction => {
             let loc = ev.locate_after(lead);
             (VerdictKind::Partial, partly_explained(l, ratio_after, &loc), Some(loc))
@@ -181,6 +228,33 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
         _ => None,
     };
     Verdict { kind, sentence, lead, unexplained, proposed }
+}
+
+/// Structure found where the whole run's energy is noise-like.
+struct Structure {
+    channel: &'static str,
+    unit: &'static str,
+    window_s: (f64, f64),
+    mean: f64,
+    p: f64,
+    flagged: usize,
+    tested: usize,
+}
+
+fn local_structure(ratio: f64, st: &Structure) -> String {
+    format!(
+        "unexplained: the whole run's error is noise-like ({ratio:.2}x the noise), but not everywhere: {} has \
+         structure left at {:.1}–{:.1} s (mean twin − measured {:.4} {}, p {} against noise alone; {} of {} \
+         windows flagged at 1 % over all of them) that no library effect explains",
+        st.channel,
+        st.window_s.0,
+        st.window_s.1,
+        st.mean,
+        st.unit,
+        structure::p_text(st.p),
+        st.flagged,
+        st.tested
+    )
 }
 
 fn missing(l: &Candidate, red_a: f64, group: Option<&ConfoundedGroup>) -> String {

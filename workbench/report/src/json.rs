@@ -4,8 +4,8 @@
 use serde_json::{json, Map, Value};
 
 use model_core::{RateSet, SpeedTarget};
-use simrod_compare::budget;
 use simrod_compare::CompareResult;
+use simrod_compare::{budget, structure};
 
 fn obj<I: IntoIterator<Item = (String, Value)>>(it: I) -> Value {
     Value::Object(it.into_iter().collect::<Map<String, Value>>())
@@ -74,6 +74,21 @@ pub fn to_json(r: &CompareResult) -> Value {
         "worst_spans": obj(r.channels.iter().map(|c| (c.name.clone(), json!(c.worst_spans)))),
         "whiteness": obj(r.channels.iter().map(|c| (c.name.clone(), json!(c.whiteness)))),
         "cross_correlation": obj(r.channels.iter().map(|c| (c.name.clone(), json!(c.cross)))),
+        "structure": {
+            "block_s": structure::BLOCK_S,
+            "window_s": structure::WINDOW_S,
+            "alpha": structure::ALPHA,
+            "material_energy_ratio": structure::MATERIAL,
+            "windows_tested": r.structure_tested,
+            "flagged": obj(r.channels.iter().filter(|c| !c.structure.is_empty()).map(|c| {
+                let w: Vec<serde_json::Value> = c.structure.iter().map(|x| {
+                    let t0 = r.time_s.get(x.start).copied().unwrap_or(f64::NAN);
+                    let t1 = r.time_s.get(x.start + x.len - 1).copied().unwrap_or(f64::NAN);
+                    json!({"start_s": t0, "end_s": t1, "mean": x.mean, "energy_ratio": x.energy_ratio, "p": x.p, "chi2": x.chi2, "dof": x.dof})
+                }).collect();
+                (c.name.clone(), json!(w))
+            })),
+        },
         "timing_s": { "twin": r.timing.0, "analysis": r.timing.1 },
     })
 }

@@ -7,6 +7,7 @@ use super::{num, pct};
 use model_core::{RateSet, SpeedTarget};
 use simrod_compare::budget::RegionShare;
 use simrod_compare::residual::Verdict;
+use simrod_compare::structure;
 use simrod_compare::{ChannelResult, CompareResult};
 
 /// Columns padded to their widest cell: those listed in `left` (text) left-aligned,
@@ -59,7 +60,45 @@ pub fn render(r: &CompareResult) -> String {
     regions(&mut o, r);
     spans(&mut o, r);
     structure(&mut o, r);
+    local_structure(&mut o, r);
     o
+}
+
+/// Windows with structure beyond noise, per channel (the test `diagnose` shares).
+fn local_structure(o: &mut String, r: &CompareResult) {
+    let flagged: usize = r.channels.iter().map(|c| c.structure.len()).sum();
+    let _ = writeln!(
+        o,
+        "Structure left (block means of {} s in {} s windows, {} % false alarms over all {} windows, error >= {}x the noise there): {}",
+        structure::BLOCK_S,
+        structure::WINDOW_S,
+        100.0 * structure::ALPHA,
+        r.structure_tested,
+        structure::MATERIAL,
+        if flagged == 0 { "none".to_string() } else { format!("{flagged} window(s)") }
+    );
+    for c in r.channels.iter().filter(|c| !c.structure.is_empty()) {
+        let dt = r.setup.dt_us as f64 * 1e-6;
+        let mut w: Vec<&structure::Window> = c.structure.iter().collect();
+        w.sort_by(|a, b| a.p.total_cmp(&b.p));
+        let shown: Vec<String> = w
+            .iter()
+            .take(3)
+            .map(|x| {
+                let t0 = r.time_s.get(x.start).copied().unwrap_or(x.start as f64 * dt);
+                format!(
+                    "{:.1}–{:.1} s (error {:.1}x the noise, mean {} {}, p {})",
+                    t0,
+                    t0 + x.len as f64 * dt,
+                    x.energy_ratio,
+                    num(x.mean),
+                    c.unit,
+                    structure::p_text(x.p)
+                )
+            })
+            .collect();
+        let _ = writeln!(o, "  {:<14} {} window(s): {}", c.name, c.structure.len(), shown.join("; "));
+    }
 }
 
 /// What was compared and how.
