@@ -124,8 +124,12 @@ impl Interp {
                     a
                 } else if w == 1.0 {
                     b
-                } else {
+                } else if (b - a).is_finite() {
                     a + w * (b - a)
+                } else {
+                    // Finite values of opposite sign near f64::MAX: b − a overflows, the
+                    // weighted sum does not (found by the fuzzer).
+                    (1.0 - w) * a + w * b
                 }
             })
             .collect()

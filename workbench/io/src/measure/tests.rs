@@ -399,3 +399,19 @@ fn a_row_without_its_newline_is_a_cut_write_not_a_shorter_number() {
     // A trailing comment or blank line after the last row is fine.
     assert!(load(&file(d.path(), "c.csv", &format!("{GOOD}# end")), None).is_ok());
 }
+
+/// Fuzzer regression (fuzz/regressions/csv/resample-interp-overflow-inf.csv): values near
+/// ±f64::MAX on an irregular grid interpolate to finite values, not ±inf.
+#[test]
+fn resampling_extreme_values_stays_finite() {
+    let bytes = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fuzz/regressions/csv/resample-interp-overflow-inf.csv"
+    ))
+    .unwrap();
+    let l = super::parse_bytes(Path::new("r.csv"), bytes, &LoadOptions::default()).unwrap();
+    assert!(l.resampled_dt.is_some());
+    for s in &l.measurement.signals {
+        assert!(s.values.iter().all(|v| v.is_finite()), "{}: {:?}", s.name, s.values);
+    }
+}
