@@ -22,7 +22,7 @@ use model_core::{Channel, Effects};
 use serde_json::{json, Map, Value};
 
 use crate::compare::regions;
-use crate::diagnose::twin::{fitted_channels, BuiltinProbe, RecordedTwin};
+use crate::diagnose::twin::{fitted_channels, BuiltinProbe, Campaign, RecordedTwin};
 use crate::diagnose::{self, Diagnosis, Options, VerdictKind};
 use crate::effects_file::{format_effects, summarize_effects, write_effects};
 use crate::error::CmdError;
@@ -30,7 +30,7 @@ use crate::measure::{self, LoadOptions, Mapping, GAP_CHANNEL};
 use crate::report::table::columns;
 use crate::report::{change_pct, num, pct};
 use crate::twin::args::{ModelArgs, SensorArgs};
-use crate::twin::{check_budget, Aligned, InputSource, MeasuredTwin};
+use crate::twin::{check_budget, Aligned, InputSource, MeasuredTwin, ModelOptions};
 use simrod_io::budget::{BudgetArgs, DEFAULT_GB};
 
 /// Fewest fitted channels a diagnosis runs on: with fewer, most effects look alike.
@@ -56,16 +56,20 @@ How the diagnosis works:
   --speed-window-s, ...): the bench counts encoder pulses in a window centred on each sample
   (0.1 s on the SimRod bench; 0 when the speeds are not window-counted), and the twin's
   speeds are averaged over the same window before they are compared.
-  Files with gaps are refused: cut the run at the gap.";
+  Files with gaps are refused: cut the run at the gap.
+  Several runs are a campaign: the twin runs on each with the same effects and every fit is
+  joint, so two effects confounded on one run are told apart when another run separates
+  them (a different profile, scale or supply voltage).";
 
 /// Arguments of `simrod diagnose`.
 #[derive(Debug, Clone, Args)]
 #[command(after_long_help = HOW)]
 pub struct DiagnoseArgs {
-    /// Measured run with set points: .csv (also .txt, .tsv) or .mat, as `simrod bench`
-    /// writes them.
-    #[arg(value_name = "MEAS")]
-    pub meas: PathBuf,
+    /// Measured runs with set points: .csv (also .txt, .tsv) or .mat, as `simrod bench`
+    /// writes them. Several runs (other profiles, scales, supply voltages) are a
+    /// campaign: the effects are shared and fitted to all of them jointly.
+    #[arg(value_name = "MEAS", required = true, num_args = 1..)]
+    pub meas: Vec<PathBuf>,
 
     #[command(flatten)]
     pub model: ModelArgs,
@@ -104,7 +108,7 @@ impl DiagnoseArgs {
     /// as the demo; a test checks these are clap's defaults).
     pub fn for_file(meas: &Path) -> Self {
         Self {
-            meas: meas.to_path_buf(),
+            meas: vec![meas.to_path_buf()],
             model: ModelArgs::default(),
             sensors: SensorArgs::default(),
             json: false,
@@ -166,18 +170,55 @@ impl Diagnosed {
     }
 }
 
-/// Load, align and diagnose; writes nothing.
+/// One run of a campaign on the twin's grid.
+struct Loaded1 {
+    src: String,
+    twin: MeasuredTwin,
+    al: Aligned,
+    notes: Vec<String>,
+}
+
+/// Load one run, check it and put it on the twin's grid (the file's values move into
+/// the pairs: a long run is held once).
+fn load_run(
+    path: &Path,
+    args: &DiagnoseArgs,
+    model: &ModelOptions,
+    opts: &LoadOptions,
+) -> Result<Loaded1, CmdError> {
+    let src = path.display().to_string();
+    let usage = |e: String| CmdError::Usage(format!("{src}: {e}"));
+    let loaded = measure::load_with(path, opts)?;
+    let doing = format!("diagnosing {src}");
+    check_budget(&loaded.measurement.time_s, &args.budget.budget(), &doing, DIAGNOSE_BYTES_PER_SAMPLE)
+        .map_err(|e| usage(e.to_string()))?;
+    if loaded.measurement.gap_mask().iter().any(|g| *g) {
+        return Err(usage(format!(
+            "the run has samples flagged in its `{GAP_CHANNEL}` column; diagnose fits every sample, so cut the run at the gap"
+        )));
+    }
+    let mut twin = MeasuredTwin::new(&loaded.measurement, model, &InputSource::Recorded)
+        .map_err(|e| usage(e.to_string()))?;
+    check_delay(&model.effects, twin.grid.dt_us).map_err(|m| {
+        CmdError::Usage(format!("{}: {m}", args.model.effects.as_deref().unwrap_or(Path::new("")).display()))
+    })?;
+    drop(loaded.measurement);
+    let al = twin.align_taking(model.effects).map_err(|e| usage(e.to_string()))?;
+    let mut notes = loaded.notes;
+    notes.push(format!("{src}: {}", al.grid.step_note));
+    notes.extend(al.grid.data_notes.iter().map(|n| format!("{src}: {n}")));
+    Ok(Loaded1 { src, twin, al, notes })
+}
+
+/// Load, align and diagnose one run or a campaign of runs; writes nothing.
 pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
     let t0 = Instant::now();
     let mut model = args.model.load()?;
     model.sensors = args.sensors.model();
     let base = model.effects;
     if let Some(out) = &args.write_effects {
-        let inputs = args
-            .model
-            .inputs()
-            .file("the measurement", Some(&args.meas))
-            .file("--mapping", args.mapping.as_deref());
+        let inputs =
+            args.model.inputs().files("a measurement", &args.meas).file("--mapping", args.mapping.as_deref());
         inputs.check("--write-effects", out).map_err(CmdError::Usage)?;
         check_out_path(out)?;
     }
@@ -186,55 +227,47 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
         budget: args.budget.budget(),
         ..LoadOptions::default()
     };
-    let loaded = measure::load_with(&args.meas, &load_opts)?;
-    let doing = format!("diagnosing {}", args.meas.display());
-    check_budget(&loaded.measurement.time_s, &args.budget.budget(), &doing, DIAGNOSE_BYTES_PER_SAMPLE)
-        .map_err(|e| CmdError::Usage(format!("{}: {e}", args.meas.display())))?;
-    let meas = &loaded.measurement;
-    let src = args.meas.display().to_string();
-    if meas.gap_mask().iter().any(|g| *g) {
-        return Err(CmdError::Usage(format!(
-            "{src}: the run has samples flagged in its `{GAP_CHANNEL}` column; diagnose fits every sample, so cut the run at the gap"
-        )));
+    let mut runs = Vec::with_capacity(args.meas.len());
+    for path in &args.meas {
+        runs.push(load_run(path, args, &model, &load_opts)?);
     }
-    let mut twin = MeasuredTwin::new(meas, &model, &InputSource::Recorded)
-        .map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
-    check_delay(&base, twin.grid.dt_us).map_err(|m| {
-        CmdError::Usage(format!("{}: {m}", args.model.effects.as_deref().unwrap_or(Path::new("")).display()))
-    })?;
-    // A long run is held once: the file's values live on in the pairs only, and the
-    // twin keeps what it needs to run (set points, grid).
-    let load_notes = loaded.notes;
-    drop(loaded.measurement);
-    let al = twin.align_taking(base).map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
-
+    let src = runs.iter().map(|r| r.src.as_str()).collect::<Vec<_>>().join(" + ");
     let limits = regions::Limits::of_model(&model).map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
     let mut o = Options {
         base,
-        params: twin.model.params(),
-        regions: region_masks(&al, &limits),
+        params: model.params(),
+        regions: region_masks(&runs, &limits),
         progress: true,
         ..Options::default()
     };
     if let Some(t) = args.threads {
         o.threads = t as usize;
     }
-    let (step_note, samples, dt_us) = (al.grid.step_note.clone(), al.grid.time_s.len(), al.grid.dt_us);
-    let data_notes = al.grid.data_notes.clone();
-    let duration_s = al.grid.duration_s();
-    let fitted = fitted_series(al, &src)?;
+    let dt_us = runs[0].al.grid.dt_us;
+    let samples = runs.iter().map(|r| r.al.grid.time_s.len()).sum();
+    let duration_s = runs.iter().map(|r| r.al.grid.duration_s()).sum();
+    let step_note = runs[0].al.grid.step_note.clone();
+    let fitted = fitted_series(&mut runs, &src)?;
     let probe = BuiltinProbe::standard(model.clone(), fitted.channels.clone());
-    let recorded = RecordedTwin { twin, channels: fitted.channels.clone() };
+    let mut notes = Vec::new();
+    let twins: Vec<RecordedTwin> = runs
+        .into_iter()
+        .map(|r| {
+            notes.extend(r.notes);
+            RecordedTwin { twin: r.twin, channels: fitted.channels.clone() }
+        })
+        .collect();
+    let campaign = Campaign::new(twins).map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
     let t1 = Instant::now();
-    let diagnosis = diagnose::diagnose(&recorded, &fitted.series, &o, Some(&probe))
+    let diagnosis = diagnose::diagnose(&campaign, &fitted.series, &o, Some(&probe))
         .map_err(|e| CmdError::Runtime(format!("{src}: diagnosis failed: {e}")))?;
     let t2 = Instant::now();
 
-    let mut notes = load_notes;
-    notes.push(step_note.clone());
-    notes.extend(data_notes);
+    if args.meas.len() > 1 {
+        notes.push(format!("campaign of {} runs, fitted jointly (the effects are shared)", args.meas.len()));
+    }
     if !fitted.missing.is_empty() {
-        notes.push(format!("not in the file (not fitted): {}", fitted.missing.join(", ")));
+        notes.push(format!("not in every file (not fitted): {}", fitted.missing.join(", ")));
     }
     Ok(Diagnosed {
         setup: DiagSetup {
@@ -255,34 +288,46 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
     })
 }
 
-/// The measured channels the diagnosis fits, `[channel][sample]`, and those the file lacks.
+/// The measured channels the diagnosis fits, `[channel][sample]` over the runs one after
+/// another, and those not in every file.
 struct Fitted {
     channels: Vec<Channel>,
     series: Vec<Vec<f64>>,
     missing: Vec<&'static str>,
 }
 
-/// The fitted channels of an aligned run (moved out of it); every sample must be finite.
-fn fitted_series(mut al: Aligned, src: &str) -> Result<Fitted, CmdError> {
+/// The fitted channels every run has (moved out of the runs' pairs); every sample must
+/// be finite.
+fn fitted_series(runs: &mut [Loaded1], src: &str) -> Result<Fitted, CmdError> {
     let mut f = Fitted { channels: Vec::new(), series: Vec::new(), missing: Vec::new() };
+    let has = |r: &Loaded1, c: Channel| r.al.channels.iter().any(|p| !p.derived && p.name == c.name());
     for c in fitted_channels() {
-        let Some(p) = al.channels.iter_mut().find(|p| !p.derived && p.name == c.name()) else {
+        if !runs.iter().all(|r| has(r, c)) {
             f.missing.push(c.name());
             continue;
-        };
-        if let Some(k) = p.meas.iter().position(|v| !v.is_finite()) {
-            return Err(CmdError::Usage(format!(
-                "{src}: {} is not a finite number at t = {:.6} s; diagnose needs every sample",
-                c.name(),
-                al.grid.time_s.get(k).copied().unwrap_or(f64::NAN)
-            )));
+        }
+        let mut all = Vec::new();
+        for r in runs.iter_mut() {
+            let time = &r.al.grid.time_s;
+            let Some(p) = r.al.channels.iter_mut().find(|p| !p.derived && p.name == c.name()) else {
+                continue;
+            };
+            if let Some(k) = p.meas.iter().position(|v| !v.is_finite()) {
+                return Err(CmdError::Usage(format!(
+                    "{}: {} is not a finite number at t = {:.6} s; diagnose needs every sample",
+                    r.src,
+                    c.name(),
+                    time.get(k).copied().unwrap_or(f64::NAN)
+                )));
+            }
+            all.append(&mut p.meas);
         }
         f.channels.push(c);
-        f.series.push(std::mem::take(&mut p.meas));
+        f.series.push(all);
     }
     if f.channels.len() < MIN_CHANNELS {
         return Err(CmdError::Usage(format!(
-            "{src}: diagnose needs at least {MIN_CHANNELS} of the measured channels; the file lacks {}",
+            "{src}: diagnose needs at least {MIN_CHANNELS} of the measured channels; missing: {}",
             f.missing.join(", ")
         )));
     }
@@ -290,20 +335,18 @@ fn fitted_series(mut al: Aligned, src: &str) -> Result<Fitted, CmdError> {
 }
 
 /// Operating regions as `simrod compare` classifies them (from the measured and
-/// commanded signals), for the error each candidate removes per region: the combined
-/// regions holding at least 1 % of the samples, and "at a limit".
-fn region_masks(al: &Aligned, limits: &regions::Limits) -> Vec<(String, Vec<bool>)> {
-    let classes = regions::classify(al, &regions::RegionRules::default(), limits);
+/// commanded signals), for the error each candidate removes per region, over the runs one
+/// after another: the combined regions holding at least 1 % of the samples, and "at a
+/// limit".
+fn region_masks(runs: &[Loaded1], limits: &regions::Limits) -> Vec<(String, Vec<bool>)> {
+    let classes: Vec<regions::Classification> =
+        runs.iter().map(|r| regions::classify(&r.al, &regions::RegionRules::default(), limits)).collect();
+    let all = || classes.iter().flat_map(|c| c.classes.iter());
     let mut masks: Vec<(String, Vec<bool>)> = (0..regions::N_COMBINED)
-        .map(|i| {
-            (
-                regions::combined_name(i),
-                classes.classes.iter().map(|c| c.combined() == i).collect::<Vec<bool>>(),
-            )
-        })
+        .map(|i| (regions::combined_name(i), all().map(|c| c.combined() == i).collect::<Vec<bool>>()))
         .filter(|(_, m)| m.iter().filter(|x| **x).count() * 100 >= m.len())
         .collect();
-    masks.push(("at a limit".into(), classes.classes.iter().map(|c| c.limits != 0).collect()));
+    masks.push(("at a limit".into(), all().map(|c| c.limits != 0).collect()));
     masks
 }
 

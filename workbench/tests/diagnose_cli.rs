@@ -149,3 +149,43 @@ fn a_local_error_is_never_nothing_missing() {
     assert_ne!(j["kind"], "nothing_missing", "{}", j["verdict"]);
     assert!(j["verdict"].as_str().unwrap().contains("C_Kistler_L"), "{}", j["verdict"]);
 }
+
+/// A campaign is fitted jointly: differential friction hidden in TP14 reversed is
+/// confounded there with a current-sensor gain; the run the tool names to separate them
+/// (TP07 at 0.79 with motoring loads), added as a second file, resolves that pair and
+/// narrows the friction's interval.
+#[test]
+fn a_campaign_resolves_what_one_run_confounds() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path();
+    std::fs::write(p.join("fx.toml"), "[differential_friction]\ncoulomb_nm = 3.0\n").unwrap();
+    let bench = |args: &[&str], seed: &str, out: &str| {
+        let mut a = vec!["bench", "--effects", "fx.toml", "--seed", seed, "-q", "--out", out];
+        a.extend_from_slice(args);
+        ok(&simrod(p, &a));
+    };
+    bench(&["--profile", "TP14", "--throttle-scale", "-1", "--load-scale", "0"], "51", "rev.csv");
+    bench(&["--profile", "TP07", "--throttle-scale", "0.79", "--load-scale", "-1"], "52", "fwd.csv");
+    let diag = |files: &[&str]| -> Value {
+        let mut a = vec!["diagnose", "--json"];
+        a.extend_from_slice(files);
+        serde_json::from_str(&ok(&simrod(p, &a))).unwrap()
+    };
+    let grouped = |j: &Value, effect: &str| {
+        j["confounded"]
+            .as_array()
+            .is_some_and(|g| g.iter().any(|g| g["effects"].to_string().contains(effect)))
+    };
+    let half_width = |j: &Value| -> f64 {
+        let lead = &j["ranking"][0];
+        assert_eq!(lead["effect"], "differential_friction", "{}", j["verdict"]);
+        1.96 * lead["uncertainty"]["coulomb_nm"].as_f64().unwrap()
+    };
+    let one = diag(&["rev.csv"]);
+    assert_eq!(one["kind"], "missing", "{}", one["verdict"]);
+    assert!(grouped(&one, "current_sensor_gain"), "confounded on one run: {}", one["confounded"]);
+    let both = diag(&["rev.csv", "fwd.csv"]);
+    assert_eq!(both["kind"], "missing", "{}", both["verdict"]);
+    assert!(!grouped(&both, "current_sensor_gain"), "resolved by the campaign: {}", both["confounded"]);
+    assert!(half_width(&both) < 0.7 * half_width(&one), "{} vs {}", half_width(&both), half_width(&one));
+}

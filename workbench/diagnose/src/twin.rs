@@ -34,6 +34,68 @@ impl Twin for RecordedTwin {
     }
 }
 
+/// Several recorded runs as one twin: their samples one after another, so every fit is
+/// joint (the effects are shared, the evidence is every run's). Runs with different
+/// profiles, scales or supply voltages excite effects differently: a pair of effects
+/// confounded on one run is told apart by the campaign when another run separates them.
+pub struct Campaign {
+    runs: Vec<RecordedTwin>,
+}
+
+impl Campaign {
+    /// The runs must fit the same channels at the same model step.
+    pub fn new(runs: Vec<RecordedTwin>) -> Result<Self, String> {
+        let first = runs.first().ok_or("a campaign needs at least one run")?;
+        for (i, r) in runs.iter().enumerate().skip(1) {
+            if r.channels != first.channels {
+                return Err(format!("run {} fits other channels than run 1", i + 1));
+            }
+            if r.twin.grid.dt_us != first.twin.grid.dt_us {
+                return Err(format!(
+                    "run {} has a {} µs model step, run 1 {} µs: record the campaign at one rate",
+                    i + 1,
+                    r.twin.grid.dt_us,
+                    first.twin.grid.dt_us
+                ));
+            }
+        }
+        Ok(Self { runs })
+    }
+
+    /// Samples of each run, in order (where one run ends and the next begins).
+    pub fn run_samples(&self) -> Vec<usize> {
+        self.runs.iter().map(Twin::samples).collect()
+    }
+}
+
+impl Twin for Campaign {
+    fn channels(&self) -> &[Channel] {
+        self.runs.first().map_or(&[], |r| r.channels.as_slice())
+    }
+
+    fn samples(&self) -> usize {
+        self.runs.iter().map(Twin::samples).sum()
+    }
+
+    fn dt_s(&self) -> f64 {
+        self.runs.first().map_or(1e-3, Twin::dt_s)
+    }
+
+    fn run(&self, fx: &Effects) -> Result<Vec<Vec<f32>>, String> {
+        let mut out: Vec<Vec<f32>> = vec![Vec::with_capacity(self.samples()); self.channels().len()];
+        for r in &self.runs {
+            for (all, part) in out.iter_mut().zip(r.run(fx)?) {
+                all.extend(part);
+            }
+        }
+        Ok(out)
+    }
+
+    fn resolution(&self) -> Vec<f64> {
+        self.runs.first().map_or_else(Vec::new, Twin::resolution)
+    }
+}
+
 /// Set points of a profile run, as a recorded run would carry them.
 pub fn profile_inputs(profile: &Profile, dt_us: u32, supply_v: f32) -> Vec<Inputs> {
     let n = profile.duration_us().div_ceil(u64::from(dt_us));
