@@ -50,8 +50,13 @@ How the diagnosis works:
   residual variance uses a Bartlett taper, so it is never negative. Effects whose predicted
   residual shapes coincide are reported as confounded, with the built-in profile that best
   separates them.
-  Verdicts: missing (one effect explains the error and leaves noise), partial, unexplained,
-  nothing_missing (the residual is already noise-like).
+  Effects are selected as a set: forward steps on the linearised model, each effect kept
+  only if it also removes error on data its fit did not see (leave-one-run-out in a
+  campaign, contiguous fifths of a single run), then backward elimination; a set of two or
+  more is refitted jointly on the simulator and named together ("missing effects: A + B").
+  Verdicts: missing (the effect or set explains the error and leaves noise), partial (it
+  explains part, or structure is left per channel and 2 s window, located), unexplained,
+  nothing_missing (noise-like in total and in every channel and window).
   The twin runs exactly as in `simrod compare` with the same flags (--data-dir, --effects,
   --speed-window-s, ...): the bench counts encoder pulses in a window centred on each sample
   (0.1 s on the SimRod bench; 0 when the speeds are not window-counted), and the twin's

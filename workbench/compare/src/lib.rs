@@ -238,7 +238,7 @@ pub fn compare_prepared(
             let b = budget::budget(&classes.classes, &e);
             let top = budget::top_combined(&b, opts.top_regions);
             let worst = spans::worst_spans(time_s, &e, window, opts.spans);
-            let resolution = Channel::from_name(&p.name).and_then(|c| opts.model.sensors.counting_rms(c));
+            let resolution = Channel::from_name(&p.name).and_then(|c| opts.model.sensors.counting_step(c));
             tested_windows
                 .push((!p.derived).then(|| structure::windows(&e, dt_s, resolution.unwrap_or(0.0))));
             let mut whiteness = st.whiteness;

@@ -73,8 +73,9 @@ impl ChannelWindows {
 
 /// The windows of residual `r` sampled every `dt` seconds (non-finite samples, such as
 /// gaps, are left out of their block; a block less than half finite is left out).
-/// `resolution` [unit]: the RMS error the sensor makes by design (a tachometer's
-/// counting; 0 for none): a residual within it is never material, however regular.
+/// `resolution` [unit]: the largest error the sensor makes by design (a tachometer:
+/// one count per window; 0 for none): a residual within it is never material, however
+/// regular.
 pub fn windows(r: &[f64], dt: f64, resolution: f64) -> ChannelWindows {
     let per_block = ((BLOCK_S / dt).round() as usize).max(1);
     let blocks: Vec<Option<f64>> =

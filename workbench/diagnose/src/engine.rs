@@ -41,10 +41,16 @@ pub trait Twin: Sync {
     /// Simulated `[channel][sample]`.
     fn run(&self, fx: &Effects) -> Result<Vec<Vec<f32>>, String>;
 
-    /// Per channel, the RMS error its sensor makes by design (a tachometer's counting),
-    /// [unit]; 0 for none. Structure within it is not a model error.
+    /// Per channel, the largest error its sensor makes by design (a tachometer: one
+    /// count per window), [unit]; 0 for none. Structure within it is not a model error.
     fn resolution(&self) -> Vec<f64> {
         vec![0.0; self.channels().len()]
+    }
+
+    /// Samples of each recorded run, in order (one run: all of them). Held-out
+    /// validation leaves one run out at a time when there are several.
+    fn segments(&self) -> Vec<usize> {
+        vec![self.samples()]
     }
 
     /// Every `stride`-th sample of [`Twin::run`] (from the first): what the fits read.
@@ -289,6 +295,7 @@ fn stages(
     let selected = greedy(&p, &s, o);
     let leaders = refit_list(&cands, &selected, o);
     let fits = confirm_leaders(twin, &p, &s, o, &leaders, &mut cands);
+    let set = joint_fit(twin, &p, &s, o, &selected);
     let ranking = rank(&cands);
     let group = Leaders { cands: &cands, lin: &lin, fits: &fits, ranking: &ranking };
     let confounded = confounded_groups(&group, &s, o, &p.weights, probe);
@@ -301,9 +308,12 @@ fn stages(
         dt: twin.dt_s(),
         cands: &cands,
         fits: &fits,
+        set: set.as_ref(),
         ranking: &ranking,
         confounded: &confounded,
     });
+    let mut selected = selected;
+    selected.retain(|(e, _)| v.named.contains(e));
     Ok(Diagnosis {
         kind: v.kind,
         verdict: v.sentence,
@@ -315,6 +325,45 @@ fn stages(
         confounded,
         unexplained: v.unexplained,
         proposed: v.proposed,
+    })
+}
+
+/// A set of two or more effects refitted jointly on the simulator.
+pub(super) struct SetFit {
+    /// The effects, in the order the selection chose them.
+    pub effects: Vec<&'static str>,
+    /// Their parameters, effect by effect.
+    pub specs: Vec<ParamSpec>,
+    pub fit: Fit,
+    /// σ of each parameter.
+    pub std: Vec<f64>,
+}
+
+/// The selected set (when it has two or more effects) refitted jointly, from the joint
+/// linear estimate: each member's parameters with the others present, not alone.
+fn joint_fit(
+    twin: &dyn Twin,
+    p: &Prepared,
+    s: &Sensitivities,
+    o: &Options,
+    selected: &[(&'static str, f64)],
+) -> Option<SetFit> {
+    if selected.len() < 2 {
+        return None;
+    }
+    let groups: Vec<usize> =
+        selected.iter().filter_map(|(e, _)| s.groups.iter().position(|(g, _)| g == e)).collect();
+    let ix: Vec<usize> = groups.iter().flat_map(|&g| s.groups[g].1.iter().copied()).collect();
+    let (th, _) = super::selection::fit_lin(s, &ix);
+    let start: Vec<f64> = ix.iter().zip(&th).map(|(&i, t)| s.starts[i] + t * s.steps[i]).collect();
+    let sp: Vec<&ParamSpec> = ix.iter().map(|&i| &s.specs[i]).collect();
+    let fit = refit(twin, p, o, &sp, &start)?;
+    let std = parameter_std(p, &fit, &sp, twin.dt_s());
+    Some(SetFit {
+        effects: groups.iter().map(|&g| s.groups[g].0).collect(),
+        specs: sp.into_iter().cloned().collect(),
+        fit,
+        std,
     })
 }
 

@@ -30,6 +30,9 @@ pub(super) struct Prepared {
     /// Samples of the run between fit samples: runs are read with
     /// [`Twin::run_every`] at this stride.
     pub stride: usize,
+    /// Per fit sample, its held-out fold: the run it belongs to in a campaign, else one
+    /// of [`TIME_FOLDS`] contiguous stretches of the run.
+    pub folds: Vec<usize>,
     /// Weighted squared error of the current model.
     pub e0: f64,
     /// What noise alone would give (one per fit sample and channel).
@@ -71,6 +74,7 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
     let base_sim: Vec<Vec<f32>> = base_sim.into_iter().map(|c| every(c, stride)).collect();
     let base: Vec<Vec<f64>> = base_sim.iter().map(|c| c.iter().map(|v| f64::from(*v)).collect()).collect();
     let idx: Vec<usize> = (0..base.first().map_or(0, Vec::len)).collect();
+    let folds = folds(&twin.segments(), stride, idx.len());
     let mut p = Prepared {
         meas: meas.iter().map(|m| every(m.clone(), stride)).collect(),
         base_sim,
@@ -80,6 +84,7 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         noise,
         idx,
         stride,
+        folds,
         e0: 0.0,
         e_noise: 0.0,
         excess: 0.0,
@@ -92,6 +97,25 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
     p.excess = (p.e0 - p.e_noise).max(1e-3 * p.e_noise).max(1e-300);
     p.excess_ratio = p.e0 / p.e_noise;
     Ok(p)
+}
+
+/// Contiguous stretches of a single run that held-out validation leaves out in turn.
+pub(super) const TIME_FOLDS: usize = 5;
+
+/// The fold of each of `n` fit samples (every `stride`-th sample of runs of `segments`
+/// samples, one after another): by run when there are several, else by time.
+fn folds(segments: &[usize], stride: usize, n: usize) -> Vec<usize> {
+    if segments.len() > 1 {
+        let mut ends = Vec::with_capacity(segments.len());
+        let mut acc = 0;
+        for s in segments {
+            acc += s;
+            ends.push(acc);
+        }
+        (0..n).map(|k| ends.iter().position(|&e| k * stride < e).unwrap_or(segments.len() - 1)).collect()
+    } else {
+        (0..n).map(|k| k * TIME_FOLDS / n.max(1)).collect()
+    }
 }
 
 /// Noise σ of one channel's residual `m - s`, floored so that a noiseless (simulated or
@@ -189,6 +213,15 @@ pub(super) fn region_errors(
 
 #[cfg(test)]
 pub(super) mod tests {
+    /// Folds are the runs of a campaign (fit samples taken every `stride` samples across
+    /// the boundaries), else contiguous fifths of one run.
+    #[test]
+    fn folds_follow_runs_or_time() {
+        // Runs of 10 and 6 samples, every 2nd sample: 0,2,..,8 in run 1; 10,12,14 in run 2.
+        assert_eq!(super::folds(&[10, 6], 2, 8), [0, 0, 0, 0, 0, 1, 1, 1]);
+        assert_eq!(super::folds(&[100], 1, 10), [0, 0, 1, 1, 2, 2, 3, 3, 4, 4]);
+    }
+
     /// Standard normal draws, deterministic per seed.
     pub(crate) fn gaussian(seed: u64, n: usize) -> Vec<f64> {
         let mut rng = simrod_numerics::stats::Rng::new(seed, 0);

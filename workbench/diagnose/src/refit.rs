@@ -325,6 +325,7 @@ mod tests {
             noise: vec![("Throttle", 1.0)],
             idx: (0..n).collect(),
             stride: 1,
+            folds: vec![0; n],
             e0: 0.0,
             e_noise: n as f64,
             excess: 1.0,

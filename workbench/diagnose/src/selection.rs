@@ -13,16 +13,48 @@ use super::sensitivities::Sensitivities;
 /// Bounded linear fit of the parameters `ix`: coefficients (in steps) and the weighted
 /// error they remove.
 pub(super) fn fit_lin(s: &Sensitivities, ix: &[usize]) -> (Vec<f64>, f64) {
-    let gs = sub_matrix(&s.g, s.np(), ix);
-    let bs: Vec<f64> = ix.iter().map(|&i| s.b[i]).collect();
+    let th = bounded_solve(s, &s.g, &s.b, ix);
+    let red = reduction(s, &s.g, &s.b, ix, &th);
+    (th, red.max(0.0))
+}
+
+/// The coefficients (in steps) of the parameters `ix` that minimise the linearised
+/// error with normal equations `(g, b)` (full `np` layout), clamped to their bounds.
+fn bounded_solve(s: &Sensitivities, g: &[f64], b: &[f64], ix: &[usize]) -> Vec<f64> {
+    let gs = sub_matrix(g, s.np(), ix);
+    let bs: Vec<f64> = ix.iter().map(|&i| b[i]).collect();
     let mut th = solve_spd(&gs, &bs, 1e-9).unwrap_or_else(|| vec![0.0; ix.len()]);
     for (t, &i) in th.iter_mut().zip(ix) {
         let sp = &s.specs[i];
         let v = (s.starts[i] + *t * s.steps[i]).clamp(sp.lower, sp.upper);
         *t = (v - s.starts[i]) / s.steps[i];
     }
-    let red = 2.0 * th.iter().zip(&bs).map(|(a, c)| a * c).sum::<f64>() - quad(&gs, &th);
-    (th, red.max(0.0))
+    th
+}
+
+/// The weighted error removed by coefficients `th` of `ix` under `(g, b)`.
+fn reduction(s: &Sensitivities, g: &[f64], b: &[f64], ix: &[usize], th: &[f64]) -> f64 {
+    let gs = sub_matrix(g, s.np(), ix);
+    2.0 * th.iter().zip(ix).map(|(a, &i)| a * b[i]).sum::<f64>() - quad(&gs, th)
+}
+
+/// The error the parameters `ix` remove on data their fit did not see: each held-out
+/// fold's reduction with the coefficients fitted on the other folds, summed. An effect
+/// that only fits noise, or model error peculiar to one stretch or run, removes nothing
+/// (or adds error) there. Without folds, the in-sample reduction.
+pub(super) fn held_out(s: &Sensitivities, ix: &[usize]) -> f64 {
+    if s.gf.len() < 2 || ix.is_empty() {
+        return if ix.is_empty() { 0.0 } else { fit_lin(s, ix).1 };
+    }
+    s.gf.iter()
+        .zip(&s.bf)
+        .map(|(gf, bf)| {
+            let g: Vec<f64> = s.g.iter().zip(gf).map(|(a, b)| a - b).collect();
+            let b: Vec<f64> = s.b.iter().zip(bf).map(|(a, b)| a - b).collect();
+            let th = bounded_solve(s, &g, &b, ix);
+            reduction(s, gf, bf, ix, &th)
+        })
+        .sum()
 }
 
 /// Every effect scored alone, in library order, with its linear coefficients (in steps).
@@ -97,34 +129,75 @@ fn channel_changes(
         .collect()
 }
 
-/// Greedy forward selection: each step adds the effect with the largest incremental
-/// reduction, until it removes less than 5 % of the excess. `(effect, share of excess)`.
+/// Share of the excess an effect must remove, in the fit and on held-out data, to join
+/// the set (in the fit: as the greedy line always required).
+const JOIN_IN_SAMPLE: f64 = 0.05;
+const JOIN_HELD_OUT: f64 = 0.025;
+
+/// Model selection over sets of effects on the linearised model: forward steps (each
+/// adds the effect with the largest incremental reduction, when it removes at least
+/// [`JOIN_IN_SAMPLE`] of the excess and at least [`JOIN_HELD_OUT`] on held-out data),
+/// then backward elimination (a member whose removal costs less than
+/// [`JOIN_HELD_OUT`] on held-out data leaves). `(effect, incremental share of the
+/// excess)`, in the order chosen: the set the verdict names.
 pub(super) fn greedy(p: &Prepared, s: &Sensitivities, o: &Options) -> Vec<(&'static str, f64)> {
-    let mut selected: Vec<(&'static str, f64)> = Vec::new();
     let mut chosen: Vec<usize> = Vec::new();
-    let mut chosen_red = 0.0;
     for _ in 0..o.max_selected {
+        let params =
+            |gs: &[usize]| -> Vec<usize> { gs.iter().flat_map(|&g| s.groups[g].1.iter().copied()).collect() };
+        let base = fit_lin(s, &params(&chosen)).1;
         let mut best: Option<(usize, f64)> = None;
-        for (gi, (effect, ix)) in s.groups.iter().enumerate() {
-            if selected.iter().any(|(e, _)| e == effect) {
-                continue;
-            }
-            let mut joint = chosen.clone();
-            joint.extend(ix);
-            let inc = fit_lin(s, &joint).1 - chosen_red;
+        for gi in (0..s.groups.len()).filter(|g| !chosen.contains(g)) {
+            let mut with = chosen.clone();
+            with.push(gi);
+            let inc = fit_lin(s, &params(&with)).1 - base;
             if best.is_none_or(|(_, r)| inc > r) {
                 best = Some((gi, inc));
             }
         }
         let Some((gi, inc)) = best else { break };
-        if inc < 0.05 * p.excess {
+        let mut with = chosen.clone();
+        with.push(gi);
+        let validated = held_out(s, &params(&with)) - held_out(s, &params(&chosen));
+        if inc < JOIN_IN_SAMPLE * p.excess || validated < JOIN_HELD_OUT * p.excess {
             break;
         }
-        chosen.extend(&s.groups[gi].1);
-        chosen_red += inc;
-        selected.push((s.groups[gi].0, inc / p.excess));
+        chosen = with;
     }
-    selected
+    backward(s, p, &mut chosen);
+    let params =
+        |gs: &[usize]| -> Vec<usize> { gs.iter().flat_map(|&g| s.groups[g].1.iter().copied()).collect() };
+    let mut out = Vec::with_capacity(chosen.len());
+    let mut before = 0.0;
+    for k in 0..chosen.len() {
+        let red = fit_lin(s, &params(&chosen[..=k])).1;
+        out.push((s.groups[chosen[k]].0, (red - before) / p.excess));
+        before = red;
+    }
+    out
+}
+
+/// Backward elimination: while some member of `chosen` costs less than
+/// [`JOIN_HELD_OUT`] of the excess on held-out data when left out, drop the cheapest.
+fn backward(s: &Sensitivities, p: &Prepared, chosen: &mut Vec<usize>) {
+    let params =
+        |gs: &[usize]| -> Vec<usize> { gs.iter().flat_map(|&g| s.groups[g].1.iter().copied()).collect() };
+    while chosen.len() > 1 {
+        let all = held_out(s, &params(chosen));
+        let cheapest = (0..chosen.len())
+            .map(|m| {
+                let rest: Vec<usize> =
+                    chosen.iter().enumerate().filter(|(i, _)| *i != m).map(|(_, g)| *g).collect();
+                (m, all - held_out(s, &params(&rest)))
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        match cheapest {
+            Some((m, cost)) if cost < JOIN_HELD_OUT * p.excess => {
+                chosen.remove(m);
+            }
+            _ => break,
+        }
+    }
 }
 
 /// The candidates to refit: the selected ones, then the best by predicted reduction up to

@@ -28,6 +28,9 @@ pub(super) struct Sensitivities {
     pub bc: Vec<Vec<f64>>,
     /// Parameter indices of each effect, in library order.
     pub groups: Vec<(&'static str, Vec<usize>)>,
+    /// `J'WJ` and `J'W r` of each held-out fold ([`Prepared::folds`]), all channels.
+    pub gf: Vec<Vec<f64>>,
+    pub bf: Vec<Vec<f64>>,
 }
 
 impl Sensitivities {
@@ -71,7 +74,8 @@ pub(super) fn sensitivities(twin: &dyn Twin, p: &Prepared, o: &Options) -> Resul
         b.iter_mut().zip(bcc).for_each(|(a, x)| *a += x);
     }
     let groups = effect_groups(&specs);
-    Ok(Sensitivities { specs, starts, steps, sens, g, b, gc, bc, groups })
+    let (gf, bf) = fold_normal_equations(p, &sens);
+    Ok(Sensitivities { specs, starts, steps, sens, g, b, gc, bc, groups, gf, bf })
 }
 
 /// A simulation must have the measurement's channels and samples.
@@ -110,6 +114,31 @@ fn channel_normal_equations(p: &Prepared, sens: &[Vec<Vec<f64>>]) -> (Vec<Vec<f6
         }
     }
     (gc, bc)
+}
+
+/// Per held-out fold: `J'WJ` (full) and `J'W r` over all channels.
+fn fold_normal_equations(p: &Prepared, sens: &[Vec<Vec<f64>>]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let np = sens.len();
+    let nf = p.folds.iter().max().map_or(1, |m| m + 1);
+    let mut gf = vec![vec![0.0; np * np]; nf];
+    let mut bf = vec![vec![0.0; np]; nf];
+    for (c, w) in p.weights.iter().enumerate() {
+        for (k, &t) in p.idx.iter().enumerate() {
+            let f = p.folds.get(k).copied().unwrap_or(0);
+            let r = p.meas[c][t] - p.base[c][t];
+            for i in 0..np {
+                let si = sens[i][c][k];
+                if si == 0.0 {
+                    continue;
+                }
+                bf[f][i] += w * si * r;
+                for j in 0..np {
+                    gf[f][i * np + j] += w * si * sens[j][c][k];
+                }
+            }
+        }
+    }
+    (gf, bf)
 }
 
 /// Parameter indices grouped by effect, in order of first appearance.

@@ -30,7 +30,7 @@ impl Twin for RecordedTwin {
     }
 
     fn resolution(&self) -> Vec<f64> {
-        self.channels.iter().map(|c| self.twin.model.sensors.counting_rms(*c).unwrap_or(0.0)).collect()
+        self.channels.iter().map(|c| self.twin.model.sensors.counting_step(*c).unwrap_or(0.0)).collect()
     }
 }
 
@@ -61,11 +61,6 @@ impl Campaign {
         }
         Ok(Self { runs })
     }
-
-    /// Samples of each run, in order (where one run ends and the next begins).
-    pub fn run_samples(&self) -> Vec<usize> {
-        self.runs.iter().map(Twin::samples).collect()
-    }
 }
 
 impl Twin for Campaign {
@@ -93,6 +88,10 @@ impl Twin for Campaign {
 
     fn resolution(&self) -> Vec<f64> {
         self.runs.first().map_or_else(Vec::new, Twin::resolution)
+    }
+
+    fn segments(&self) -> Vec<usize> {
+        self.runs.iter().map(Twin::samples).collect()
     }
 }
 

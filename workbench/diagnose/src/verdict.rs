@@ -5,7 +5,7 @@
 
 use model_core::{Channel, Effects};
 
-use super::engine::{Candidate, ConfoundedGroup, Location, Options, VerdictKind};
+use super::engine::{Candidate, ConfoundedGroup, Location, Options, SetFit, VerdictKind};
 use super::library::{with_values, ParamSpec};
 use super::preparation::{channel_energies, Prepared};
 use super::refit::Fit;
@@ -36,6 +36,8 @@ pub(super) struct Evidence<'a> {
     /// Candidates in library order (as the refits index them).
     pub cands: &'a [Candidate],
     pub fits: &'a [(usize, Fit)],
+    /// The selected set refitted jointly (two or more effects).
+    pub set: Option<&'a SetFit>,
     pub ranking: &'a [Candidate],
     pub confounded: &'a [ConfoundedGroup],
 }
@@ -47,6 +49,9 @@ pub(super) struct Verdict {
     pub lead: Option<&'static str>,
     pub unexplained: Option<Location>,
     pub proposed: Effects,
+    /// The effects the verdict names (the set, or the lead, or none): the selection
+    /// line shows exactly these, so the two cannot disagree.
+    pub named: Vec<&'static str>,
 }
 
 impl Evidence<'_> {
@@ -177,6 +182,9 @@ fn worst_window(m: &[f64], s: &[f32], win: usize) -> (usize, usize) {
 
 /// Judge the evidence.
 pub(super) fn conclude(ev: &Evidence) -> Verdict {
+    if let Some(v) = set_verdict(ev) {
+        return v;
+    }
     let lead = ev.ranking.iter().find(|c| ev.counts(c));
     let proposed = ev.proposed(lead);
     let lead_fit = lead.and_then(|l| ev.after(l.effect));
@@ -186,7 +194,22 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
     let explains = red_a >= o.explain_fraction && after_a <= o.noise_like_ratio;
     let (kind, sentence, unexplained) = match lead {
         Some(l) if explains && ratio_after <= o.noise_like_ratio => {
-            (VerdictKind::Missing, missing(l, red_a, ev.confounded.first()), None)
+            match lead_fit.and_then(|f| ev.structure_left(&f.sim)) {
+                None => (VerdictKind::Missing, missing(l, red_a, ev.confounded.first()), None),
+                Some(st) => {
+                    let loc = Location { channel: st.channel, share: 1.0, window_s: st.window_s };
+                    let text = format!(
+                        "{}; structure is left that it does not explain: {} at {:.1}–{:.1} s (mean twin − measured {:.4} {})",
+                        missing(l, red_a, ev.confounded.first()),
+                        st.channel,
+                        st.window_s.0,
+                        st.window_s.1,
+                        st.mean,
+                        st.unit
+                    );
+                    (VerdictKind::Partial, text, Some(loc))
+                }
+            }
         }
         Some(l) if explains => {
             let loc = ev.locate_after(lead);
@@ -227,7 +250,81 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
         VerdictKind::Missing | VerdictKind::Partial => lead.map(|l| l.effect),
         _ => None,
     };
-    Verdict { kind, sentence, lead, unexplained, proposed }
+    Verdict { kind, sentence, lead, unexplained, proposed, named: lead.into_iter().collect() }
+}
+
+/// The verdict on the selected set, when it has two or more effects and its joint
+/// refit removes materially more than the best single effect's: the set is named,
+/// every member with its parameters, so the greedy line and the verdict agree.
+fn set_verdict(ev: &Evidence) -> Option<Verdict> {
+    let set = ev.set?;
+    let (p, o) = (ev.p, ev.o);
+    let single = ev.ranking.iter().find(|c| ev.counts(c)).and_then(|l| ev.after(l.effect));
+    let single_energy = single.map_or(p.e0, |f| f.energy);
+    if single_energy - set.fit.energy < o.min_reduction_of_noise * p.e_noise {
+        return None;
+    }
+    let (red_a, after_a) = ev.on_affected(&set.fit);
+    let ratio_after = set.fit.energy / p.e_noise;
+    let names = describe_set(set);
+    let explains = red_a >= o.explain_fraction && after_a <= o.noise_like_ratio;
+    let left = ev.structure_left(&set.fit.sim);
+    let (kind, sentence, unexplained) = if explains && ratio_after <= o.noise_like_ratio && left.is_none() {
+        let text = format!(
+            "missing effects: {names}, together removing {:.0} % of the error above noise on the channels they act on and leaving a noise-like residual",
+            100.0 * red_a
+        );
+        (VerdictKind::Missing, text, None)
+    } else if let (true, Some(st)) = (explains, &left) {
+        let loc = Location { channel: st.channel, share: 1.0, window_s: st.window_s };
+        let text = format!(
+            "missing effects: {names}, together removing {:.0} % of the error above noise on the channels they act on; \
+             structure is left that they do not explain: {} at {:.1}–{:.1} s (mean twin − measured {:.4} {})",
+            100.0 * red_a,
+            st.channel,
+            st.window_s.0,
+            st.window_s.1,
+            st.mean,
+            st.unit
+        );
+        (VerdictKind::Partial, text, Some(loc))
+    } else {
+        let loc = ev.locate_rest(&set.fit.sim);
+        let text = format!(
+            "partly explained: {names} together remove {:.0} % of the error above noise on the channels they act on; what remains is {:.1}x the noise: {}",
+            100.0 * red_a,
+            ratio_after,
+            place(&loc)
+        );
+        (VerdictKind::Partial, text, Some(loc))
+    };
+    let specs: Vec<&ParamSpec> = set.specs.iter().collect();
+    Some(Verdict {
+        kind,
+        sentence,
+        lead: set.effects.first().copied(),
+        unexplained,
+        proposed: with_values(&o.base, &specs, &set.fit.values),
+        named: set.effects.clone(),
+    })
+}
+
+/// `A (p = v ± h unit, …) + B (…)`.
+fn describe_set(set: &SetFit) -> String {
+    set.effects
+        .iter()
+        .map(|e| {
+            let params: Vec<String> = set
+                .specs
+                .iter()
+                .zip(set.fit.values.iter().zip(&set.std))
+                .filter(|(sp, _)| sp.effect == *e)
+                .map(|(sp, (v, sd))| format!("{} = {:.4} ± {:.4} {}", sp.param, v, 1.96 * sd, sp.unit))
+                .collect();
+            format!("{e} ({})", params.join(", "))
+        })
+        .collect::<Vec<_>>()
+        .join(" + ")
 }
 
 /// Structure found where the whole run's energy is noise-like.

@@ -45,10 +45,16 @@ impl SensorModel {
     /// is that over √6. A residual of this size is the sensor's resolution, not a
     /// model error, however correlated it looks.
     pub fn counting_rms(&self, ch: Channel) -> Option<f64> {
+        self.counting_step(ch).map(|q| q / 6f64.sqrt())
+    }
+
+    /// [rpm] One encoder count per window: the largest error the counting makes. At a
+    /// steady speed the two boundary fractions hardly change, so over seconds the error
+    /// can sit anywhere up to this, not around [`SensorModel::counting_rms`].
+    pub fn counting_step(&self, ch: Channel) -> Option<f64> {
         let i = SPEED_CHANNELS.iter().position(|c| *c == ch)?;
         let ppr = *self.ppr.get(i)?;
-        (ppr > 0 && self.speed_window_s > 0.0)
-            .then(|| 60.0 / (f64::from(ppr) * self.speed_window_s) / 6f64.sqrt())
+        (ppr > 0 && self.speed_window_s > 0.0).then(|| 60.0 / (f64::from(ppr) * self.speed_window_s))
     }
 
     /// Record the simulated `channels` (`out[i]` is `channels[i]`, one value per step of
