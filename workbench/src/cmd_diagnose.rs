@@ -53,7 +53,7 @@ How the diagnosis works:
   Effects are selected as a set: forward steps on the linearised model, each effect kept
   only if it also removes error on data its fit did not see (leave-one-run-out in a
   campaign, contiguous fifths of a single run), then backward elimination; a set of two or
-  more is refitted jointly on the simulator and named together ("missing effects: A + B").
+  more is refitted jointly on the simulator and named together ('missing effects: A + B').
   Verdicts: missing (the effect or set explains the error and leaves noise), partial (it
   explains part, or structure is left per channel and 2 s window, located), unexplained,
   nothing_missing (noise-like in total and in every channel and window).
