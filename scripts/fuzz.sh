@@ -4,8 +4,8 @@
 #
 #   scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET...]
 #
-# SECONDS_PER_TARGET defaults to 20 (the CI smoke run); TARGETs default to all of
-# fuzz/fuzz_targets/. For each target: runs every recorded crash in
+# SECONDS_PER_TARGET defaults to 20 (the CI smoke run); TARGETs default to all four
+# (csv mat toml_files serial). For each target: runs every recorded crash in
 # fuzz/regressions/<target>/ once, then fuzzes for SECONDS_PER_TARGET on a copy of the
 # committed seed corpus fuzz/corpus/<target>/ (new inputs go to a scratch directory, so
 # the committed corpus never grows) with the dictionary fuzz/dict/<target>.dict if there
@@ -66,10 +66,12 @@ else
   trap 'rm -rf "$WORK"' EXIT
 fi
 
-# libFuzzer's result: 0 clean, else the artifact it wrote (if any) and the panic.
+# A failed libFuzzer run: the panic, and the input (the artifact libFuzzer wrote, or
+# the file it was running).
 report_failure() { # target log
   local art
   art=$(sed -n 's/.*Test unit written to \(.*\)$/\1/p' "$2" | tail -1)
+  [ -n "$art" ] || art=$(sed -n 's/^Running: \(.*\)$/\1/p' "$2" | tail -1)
   echo "!!! $1: FAILED" >&2
   grep -A2 "panicked at" "$2" | head -3 >&2 || true
   grep -E "^==[0-9]+== ERROR|ERROR: libFuzzer|Timeout|out-of-memory" "$2" | head -3 >&2 || true
@@ -88,12 +90,18 @@ for t in "${TARGETS[@]}"; do
   mapfile -t regs < <(find "$ROOT/fuzz/regressions/$t" -maxdepth 1 -type f ! -name '.*' ! -name '*.md' 2>/dev/null | sort)
   if [ ${#regs[@]} -gt 0 ]; then
     step "$t: ${#regs[@]} regression input(s) from fuzz/regressions/$t/"
-    log=$WORK/$t/regressions.log
-    if "$BIN/$t" -timeout=10 "${regs[@]}" >"$log" 2>&1; then
+    bad=0
+    for r in "${regs[@]}"; do
+      log=$WORK/$t/regression-$(basename "$r").log
+      if ! "$BIN/$t" -timeout=10 "$r" >"$log" 2>&1; then
+        report_failure "$t" "$log"
+        bad=$((bad + 1))
+      fi
+    done
+    if [ $bad -eq 0 ]; then
       echo "$t: regressions pass"
     else
-      report_failure "$t" "$log"
-      FAILED+=("$t (regression)")
+      FAILED+=("$t ($bad regression(s))")
     fi
   fi
 

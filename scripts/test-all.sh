@@ -44,3 +44,6 @@ cargo bench -p simrod-plant --bench plant_speed -- --quick --guard 6
 step "peak memory of compare and diagnose on a 40 MB run (aims: 4x / 8x the file + 200 MB; the 300 MB run: --mb 300)"
 cargo build -p workbench --bin simrod
 cargo run -p workbench --example memory -- --mb 40 --guard
+
+step "fuzz smoke run: CSV, MAT, TOML files, serial decoder, 20 s each on the committed corpus (docs/FUZZING.md)"
+scripts/fuzz.sh 20

@@ -1,6 +1,6 @@
 //! The MAT (Level 5) measurement reader: `simrod_io::measure::parse_bytes` on
-//! `fuzz.mat` (the `matfile` crate, the unit-variable walk with its inflater, then the
-//! same pipeline as CSV).
+//! `fuzz.mat` (our element walk over the file, with libflate for compressed elements,
+//! then the same pipeline as CSV).
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;

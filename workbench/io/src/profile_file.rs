@@ -7,7 +7,7 @@
 //! load_scale = 1.0              # optional, in [-1.5, 1.5]; --load-scale overrides
 //!
 //! [[set]]                       # 1 to 10 sets, run in order
-//! duration_s = 3                # required, > 0 and at most 1e6 s
+//! duration_s = 3                # required, 1e-6 s to 1e6 s
 //! throttle_pct = 50             # [-100, 100] %, + forward, - reverse (default 0)
 //! load_l_pct = 0                # [-100, 100] %, + regenerating, - motoring (default 0)
 //! load_r_pct = 0                # same, right load motor (default 0)
@@ -30,6 +30,8 @@ use toml::Spanned;
 use crate::error::FileError;
 use crate::toml_util::{toml_error, Num};
 
+/// Shortest set duration [s]: the profile clock counts whole microseconds.
+const MIN_DURATION_S: f64 = 1e-6;
 /// Largest set duration the model accepts [s].
 const MAX_DURATION_S: f64 = 1.0e6;
 /// Scale range of the PLC (and of `--throttle-scale`/`--load-scale`).
@@ -153,10 +155,12 @@ pub fn parse_profile(text: &str, origin: impl AsRef<Path>) -> Result<ProfileFile
         let n = i + 1;
         let s = s.get_ref();
         let d = s.duration_s.get_ref().0;
-        if !(d.is_finite() && d > 0.0 && d <= MAX_DURATION_S) {
+        // At least the profile clock's 1 µs: shorter sets vanish (and 1e-50 s is 0 as
+        // the model's f32, found by the fuzzer).
+        if !(d.is_finite() && (MIN_DURATION_S..=MAX_DURATION_S).contains(&d)) {
             return Err(err(
                 s.duration_s.span(),
-                format!("set {n}: duration_s = {d} must be > 0 and at most {MAX_DURATION_S} s"),
+                format!("set {n}: duration_s = {d} must be at least {MIN_DURATION_S} s and at most {MAX_DURATION_S} s"),
             ));
         }
         let pct = |key: &str, v: &Option<Spanned<Num>>| -> Result<f32, FileError> {
@@ -234,8 +238,10 @@ mod tests {
         );
         assert_eq!(
             parse("[[set]]\nduration_s = 0\n").unwrap_err(),
-            "p.toml:2:14: set 1: duration_s = 0 must be > 0 and at most 1000000 s"
+            "p.toml:2:14: set 1: duration_s = 0 must be at least 0.000001 s and at most 1000000 s"
         );
+        // Fuzzer regression (fuzz/regressions/toml_files/): positive as f64, 0 as f32.
+        assert!(parse("[[set]]\nduration_s = 1e-50\n").unwrap_err().contains("must be at least"));
         assert_eq!(
             parse("[[set]]\nduration_s = 1\nload_r_pct = nan\n").unwrap_err(),
             "p.toml:3:14: set 1: load_r_pct = NaN is outside [-100, 100] %"
