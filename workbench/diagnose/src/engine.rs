@@ -353,7 +353,7 @@ fn joint_fit(
     }
     let groups: Vec<usize> =
         selected.iter().filter_map(|(e, _)| s.groups.iter().position(|(g, _)| g == e)).collect();
-    let ix: Vec<usize> = groups.iter().flat_map(|&g| s.groups[g].1.iter().copied()).collect();
+    let ix = super::selection::group_params(s, &groups);
     let (th, _) = super::selection::fit_lin(s, &ix);
     let start: Vec<f64> = ix.iter().zip(&th).map(|(&i, t)| s.starts[i] + t * s.steps[i]).collect();
     let sp: Vec<&ParamSpec> = ix.iter().map(|&i| &s.specs[i]).collect();

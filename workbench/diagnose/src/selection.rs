@@ -141,10 +141,9 @@ const JOIN_HELD_OUT: f64 = 0.025;
 /// [`JOIN_HELD_OUT`] on held-out data leaves). `(effect, incremental share of the
 /// excess)`, in the order chosen: the set the verdict names.
 pub(super) fn greedy(p: &Prepared, s: &Sensitivities, o: &Options) -> Vec<(&'static str, f64)> {
+    let params = |gs: &[usize]| group_params(s, gs);
     let mut chosen: Vec<usize> = Vec::new();
     for _ in 0..o.max_selected {
-        let params =
-            |gs: &[usize]| -> Vec<usize> { gs.iter().flat_map(|&g| s.groups[g].1.iter().copied()).collect() };
         let base = fit_lin(s, &params(&chosen)).1;
         let mut best: Option<(usize, f64)> = None;
         for gi in (0..s.groups.len()).filter(|g| !chosen.contains(g)) {
@@ -165,8 +164,6 @@ pub(super) fn greedy(p: &Prepared, s: &Sensitivities, o: &Options) -> Vec<(&'sta
         chosen = with;
     }
     backward(s, p, &mut chosen);
-    let params =
-        |gs: &[usize]| -> Vec<usize> { gs.iter().flat_map(|&g| s.groups[g].1.iter().copied()).collect() };
     let mut out = Vec::with_capacity(chosen.len());
     let mut before = 0.0;
     for k in 0..chosen.len() {
@@ -177,11 +174,15 @@ pub(super) fn greedy(p: &Prepared, s: &Sensitivities, o: &Options) -> Vec<(&'sta
     out
 }
 
+/// The parameter indices of the effect groups `gs`.
+pub(super) fn group_params(s: &Sensitivities, gs: &[usize]) -> Vec<usize> {
+    gs.iter().flat_map(|&g| s.groups[g].1.iter().copied()).collect()
+}
+
 /// Backward elimination: while some member of `chosen` costs less than
 /// [`JOIN_HELD_OUT`] of the excess on held-out data when left out, drop the cheapest.
 fn backward(s: &Sensitivities, p: &Prepared, chosen: &mut Vec<usize>) {
-    let params =
-        |gs: &[usize]| -> Vec<usize> { gs.iter().flat_map(|&g| s.groups[g].1.iter().copied()).collect() };
+    let params = |gs: &[usize]| group_params(s, gs);
     while chosen.len() > 1 {
         let all = held_out(s, &params(chosen));
         let cheapest = (0..chosen.len())

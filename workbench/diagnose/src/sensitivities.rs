@@ -89,56 +89,50 @@ pub(super) fn check_shape(p: &Prepared, y: &[Vec<f32>]) -> Result<(), String> {
 
 /// Per channel `c`: `J_c' w_c J_c` (symmetric, full) and `J_c' w_c r_c`.
 fn channel_normal_equations(p: &Prepared, sens: &[Vec<Vec<f64>>]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
-    let np = sens.len();
-    let nc = p.weights.len();
-    let mut gc = vec![vec![0.0; np * np]; nc];
-    let mut bc = vec![vec![0.0; np]; nc];
-    for (c, w) in p.weights.iter().enumerate() {
-        for (k, &t) in p.idx.iter().enumerate() {
-            let r = p.meas[c][t] - p.base[c][t];
-            for i in 0..np {
-                let si = sens[i][c][k];
-                if si == 0.0 {
-                    continue;
-                }
-                bc[c][i] += w * si * r;
-                for j in 0..=i {
-                    gc[c][i * np + j] += w * si * sens[j][c][k];
-                }
-            }
-        }
-        for i in 0..np {
-            for j in 0..i {
-                gc[c][j * np + i] = gc[c][i * np + j];
-            }
-        }
-    }
-    (gc, bc)
+    normal_equations_by(p, sens, p.weights.len(), |c, _| c)
 }
 
 /// Per held-out fold: `J'WJ` (full) and `J'W r` over all channels.
 fn fold_normal_equations(p: &Prepared, sens: &[Vec<Vec<f64>>]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
-    let np = sens.len();
     let nf = p.folds.iter().max().map_or(1, |m| m + 1);
-    let mut gf = vec![vec![0.0; np * np]; nf];
-    let mut bf = vec![vec![0.0; np]; nf];
+    normal_equations_by(p, sens, nf, |_, k| p.folds.get(k).copied().unwrap_or(0))
+}
+
+/// `J'WJ` (symmetric, full) and `J'W r` summed into `n` parts, the term of channel `c`
+/// at fit sample `k` going to part `part(c, k)`.
+fn normal_equations_by(
+    p: &Prepared,
+    sens: &[Vec<Vec<f64>>],
+    n: usize,
+    part: impl Fn(usize, usize) -> usize,
+) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let np = sens.len();
+    let mut g = vec![vec![0.0; np * np]; n];
+    let mut b = vec![vec![0.0; np]; n];
     for (c, w) in p.weights.iter().enumerate() {
         for (k, &t) in p.idx.iter().enumerate() {
-            let f = p.folds.get(k).copied().unwrap_or(0);
+            let q = part(c, k).min(n - 1);
             let r = p.meas[c][t] - p.base[c][t];
             for i in 0..np {
                 let si = sens[i][c][k];
                 if si == 0.0 {
                     continue;
                 }
-                bf[f][i] += w * si * r;
-                for j in 0..np {
-                    gf[f][i * np + j] += w * si * sens[j][c][k];
+                b[q][i] += w * si * r;
+                for j in 0..=i {
+                    g[q][i * np + j] += w * si * sens[j][c][k];
                 }
             }
         }
     }
-    (gf, bf)
+    for gq in &mut g {
+        for i in 0..np {
+            for j in 0..i {
+                gq[j * np + i] = gq[i * np + j];
+            }
+        }
+    }
+    (g, b)
 }
 
 /// Parameter indices grouped by effect, in order of first appearance.

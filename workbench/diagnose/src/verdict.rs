@@ -197,17 +197,8 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
             match lead_fit.and_then(|f| ev.structure_left(&f.sim)) {
                 None => (VerdictKind::Missing, missing(l, red_a, ev.confounded.first()), None),
                 Some(st) => {
-                    let loc = Location { channel: st.channel, share: 1.0, window_s: st.window_s };
-                    let text = format!(
-                        "{}; structure is left that it does not explain: {} at {:.1}–{:.1} s (mean twin − measured {:.4} {})",
-                        missing(l, red_a, ev.confounded.first()),
-                        st.channel,
-                        st.window_s.0,
-                        st.window_s.1,
-                        st.mean,
-                        st.unit
-                    );
-                    (VerdictKind::Partial, text, Some(loc))
+                    let text = format!("{}; {}", missing(l, red_a, ev.confounded.first()), st.left("it"));
+                    (VerdictKind::Partial, text, Some(st.location()))
                 }
             }
         }
@@ -232,10 +223,7 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
                 ),
                 None,
             ),
-            Some(st) => {
-                let loc = Location { channel: st.channel, share: 1.0, window_s: st.window_s };
-                (VerdictKind::Unexplained, local_structure(ev.p.excess_ratio, &st), Some(loc))
-            }
+            Some(st) => (VerdictKind::Unexplained, local_structure(ev.p.excess_ratio, &st), Some(st.location())),
         },
         Some(l) if l.reduction() >= o.unexplained_fraction => {
             let loc = ev.locate_after(lead);
@@ -276,18 +264,12 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
         );
         (VerdictKind::Missing, text, None)
     } else if let (true, Some(st)) = (explains, &left) {
-        let loc = Location { channel: st.channel, share: 1.0, window_s: st.window_s };
         let text = format!(
-            "missing effects: {names}, together removing {:.0} % of the error above noise on the channels they act on; \
-             structure is left that they do not explain: {} at {:.1}–{:.1} s (mean twin − measured {:.4} {})",
+            "missing effects: {names}, together removing {:.0} % of the error above noise on the channels they act on; {}",
             100.0 * red_a,
-            st.channel,
-            st.window_s.0,
-            st.window_s.1,
-            st.mean,
-            st.unit
+            st.left("they")
         );
-        (VerdictKind::Partial, text, Some(loc))
+        (VerdictKind::Partial, text, Some(st.location()))
     } else {
         let loc = ev.locate_rest(&set.fit.sim);
         let text = format!(
@@ -336,6 +318,22 @@ struct Structure {
     p: f64,
     flagged: usize,
     tested: usize,
+}
+
+impl Structure {
+    /// Where it is, as a verdict's location.
+    fn location(&self) -> Location {
+        Location { channel: self.channel, share: 1.0, window_s: self.window_s }
+    }
+
+    /// "structure is left that `who` do(es) not explain: …".
+    fn left(&self, who: &str) -> String {
+        let verb = if who == "they" { "do" } else { "does" };
+        format!(
+            "structure is left that {who} {verb} not explain: {} at {:.1}–{:.1} s (mean twin − measured {:.4} {})",
+            self.channel, self.window_s.0, self.window_s.1, self.mean, self.unit
+        )
+    }
 }
 
 fn local_structure(ratio: f64, st: &Structure) -> String {
