@@ -14,6 +14,9 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod common;
+use common::sibling;
+
 /// One command's peak, measured.
 struct Peak {
     what: &'static str,
@@ -58,15 +61,6 @@ fn main() {
 fn flag(args: &[String], name: &str) -> Option<f64> {
     let i = args.iter().position(|a| a == name)?;
     args.get(i + 1).and_then(|v| v.parse().ok())
-}
-
-/// `name` in the target directory this example was built into.
-fn sibling(name: &str) -> PathBuf {
-    let exe = std::env::current_exe().expect("the example's path");
-    let dir = exe.parent().and_then(Path::parent).expect("target/<profile>/examples");
-    let p = dir.join(name);
-    assert!(p.exists(), "{} not built: cargo build -p workbench --bin simrod first", p.display());
-    p
 }
 
 /// A bench run of about `mb` MB: 141 bytes a row at 1 ms, so `mb` × 7.1 s of bench time,

@@ -1,0 +1,75 @@
+//! How long `simrod diagnose` takes on one 60 s run at 1 kHz and on a campaign of five
+//! (issue 12's aims on a 2-core machine: 1.5 s and 5 s), wall time of the command as a
+//! user runs it. Not a test: timings depend on the machine and the build profile.
+//!
+//! ```text
+//! cargo build --release -p workbench --bin simrod
+//! cargo run --release -p workbench --example diagnose_timing
+//! ```
+//!
+//! The runs are TP07 on the virtual bench (physics plant) at five throttle and load
+//! scales, with differential friction hidden so the fits have work to do. The `simrod`
+//! timed is the one in this example's target directory.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+mod common;
+use common::sibling;
+use std::time::Instant;
+
+const SCALES: [(&str, &str); 5] = [("1", "1"), ("0.79", "0"), ("-1", "0"), ("0.79", "-1"), ("0.6", "0.5")];
+
+fn main() {
+    let simrod = sibling("simrod");
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let fx = dir.path().join("fx.toml");
+    std::fs::write(&fx, "[differential_friction]\ncoulomb_nm = 3.0\n").expect("write the effect file");
+    let runs: Vec<PathBuf> = SCALES
+        .iter()
+        .enumerate()
+        .map(|(i, (ts, ls))| {
+            let out = dir.path().join(format!("run{i}.csv"));
+            let seed = (900 + i).to_string();
+            let args = [
+                "bench",
+                "--profile",
+                "TP07",
+                "--throttle-scale",
+                ts,
+                "--load-scale",
+                ls,
+                "--seed",
+                &seed,
+                "-q",
+            ];
+            run(&simrod, &args, &[fx.as_path(), out.as_path()]);
+            out
+        })
+        .collect();
+    println!("{:<28} {:>9} {:>9}", "diagnose (2 threads)", "wall [s]", "aim [s]");
+    for (what, files, aim) in
+        [("one 60 s run", &runs[..1], 1.5), ("campaign of five 60 s runs", &runs[..], 5.0)]
+    {
+        let mut args: Vec<String> = vec!["diagnose".into(), "--threads".into(), "2".into()];
+        args.extend(files.iter().map(|p| p.display().to_string()));
+        let t = Instant::now();
+        let o = Command::new(&simrod).args(&args).output().expect("run simrod diagnose");
+        let wall = t.elapsed().as_secs_f64();
+        assert!(o.status.success(), "{what}: {}", String::from_utf8_lossy(&o.stderr));
+        println!("{what:<28} {wall:>9.2} {aim:>9.1}");
+    }
+}
+
+/// `simrod ARGS --effects FX --out OUT`, which must succeed.
+fn run(simrod: &Path, args: &[&str], fx_out: &[&Path; 2]) {
+    let o = Command::new(simrod)
+        .args(args)
+        .arg("--effects")
+        .arg(fx_out[0])
+        .arg("--out")
+        .arg(fx_out[1])
+        .output()
+        .expect("run simrod bench");
+    assert!(o.status.success(), "bench: {}", String::from_utf8_lossy(&o.stderr));
+}
