@@ -294,8 +294,10 @@ fn stages(
     let (mut cands, lin) = score_effects(&p, &s, twin.channels());
     let selected = greedy(&p, &s, o);
     let leaders = refit_list(&cands, &selected, o);
-    let fits = confirm_leaders(twin, &p, &s, o, &leaders, &mut cands);
-    let set = joint_fit(twin, &p, &s, o, &selected);
+    let (fits, set) = rayon::join(
+        || confirm_leaders(twin, &p, &s, o, &leaders, &mut cands),
+        || joint_fit(twin, &p, &s, o, &selected),
+    );
     let ranking = rank(&cands);
     let group = Leaders { cands: &cands, lin: &lin, fits: &fits, ranking: &ranking };
     let confounded = confounded_groups(&group, &s, o, &p.weights, probe);
@@ -377,13 +379,23 @@ fn confirm_leaders(
     list: &[usize],
     cands: &mut [Candidate],
 ) -> Vec<(usize, Fit)> {
-    let mut fits = Vec::new();
-    for &ci in list {
-        let sp: Vec<&ParamSpec> = s.groups[ci].1.iter().map(|&i| &s.specs[i]).collect();
-        let start: Vec<f64> = cands[ci].params.iter().map(|f| f.value).collect();
-        let Some(fit) = refit(twin, p, o, &sp, &start) else { continue };
-        let std = parameter_std(p, &fit, &sp, twin.dt_s());
-        confirm(&mut cands[ci], &fit, &std, &sp, p);
+    use rayon::prelude::*;
+    let specs = |ci: usize| -> Vec<&ParamSpec> { s.groups[ci].1.iter().map(|&i| &s.specs[i]).collect() };
+    // The refits are independent: on the pool side by side (each one's own batches of
+    // simulations share the pool), in list order.
+    let done: Vec<(usize, Fit, Vec<f64>)> = list
+        .par_iter()
+        .filter_map(|&ci| {
+            let sp = specs(ci);
+            let start: Vec<f64> = cands[ci].params.iter().map(|f| f.value).collect();
+            let fit = refit(twin, p, o, &sp, &start)?;
+            let std = parameter_std(p, &fit, &sp, twin.dt_s());
+            Some((ci, fit, std))
+        })
+        .collect();
+    let mut fits = Vec::with_capacity(done.len());
+    for (ci, fit, std) in done {
+        confirm(&mut cands[ci], &fit, &std, &specs(ci), p);
         fits.push((ci, fit));
     }
     fits
