@@ -188,8 +188,11 @@ pub fn path_for(meas: &Path) -> PathBuf {
 }
 
 /// Append one record as one line (see the module doc for why this is crash-safe).
+/// Concurrent appends take turns ([`AppendLock`]): the check for a torn last record must
+/// not read another process's record while it is being written.
 pub fn append(path: &Path, e: &Entry) -> io::Result<()> {
     let json = serde_json::to_string(e).map_err(io::Error::other)?;
+    let _turn = AppendLock::take(path)?;
     let mut f = OpenOptions::new().create(true).append(true).read(true).open(path)?;
     let mut line = String::with_capacity(json.len() + 2);
     if f.metadata()?.len() > 0 {
@@ -211,6 +214,50 @@ pub fn append(path: &Path, e: &Entry) -> io::Result<()> {
         ));
     }
     f.sync_data()
+}
+
+/// `<history>.lock`, held while one process appends: created with `create_new` (atomic
+/// on every local file system), removed on drop. A lock older than [`STALE_LOCK_S`] is
+/// one a killed process left, and is taken over.
+struct AppendLock(PathBuf);
+
+/// [s] after which a lock is taken to be left behind (an append takes milliseconds).
+const STALE_LOCK_S: u64 = 10;
+
+impl AppendLock {
+    fn take(history: &Path) -> io::Result<Self> {
+        let mut name = history.as_os_str().to_owned();
+        name.push(".lock");
+        let lock = PathBuf::from(name);
+        let start = std::time::Instant::now();
+        loop {
+            match OpenOptions::new().write(true).create_new(true).open(&lock) {
+                Ok(_) => return Ok(Self(lock)),
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {
+                    let age = std::fs::metadata(&lock)
+                        .and_then(|m| m.modified())
+                        .ok()
+                        .and_then(|t| t.elapsed().ok());
+                    if age.is_some_and(|a| a.as_secs() >= STALE_LOCK_S) {
+                        let _ = std::fs::remove_file(&lock);
+                    } else if start.elapsed().as_secs() >= 3 * STALE_LOCK_S {
+                        return Err(io::Error::other(format!(
+                            "{} is held by another simrod",
+                            lock.display()
+                        )));
+                    }
+                    std::thread::sleep(std::time::Duration::from_millis(5));
+                }
+                Err(e) => return Err(e),
+            }
+        }
+    }
+}
+
+impl Drop for AppendLock {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
 }
 
 /// A history as read: the records in order, and what was skipped.

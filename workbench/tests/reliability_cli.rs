@@ -210,7 +210,8 @@ fn concurrent_commands_keep_history_and_output_whole() {
         }
     });
     let history = std::fs::read_to_string(p.join("good.simrod-history.jsonl")).unwrap();
-    assert_eq!(history.lines().count(), 16);
+    assert_eq!(history.lines().count(), 16, "{history}");
+    assert!(!p.join("good.simrod-history.jsonl.lock").exists(), "the append lock is left");
     for line in history.lines() {
         serde_json::from_str::<serde_json::Value>(line).expect("a whole JSON record");
     }
