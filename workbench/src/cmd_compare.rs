@@ -26,7 +26,7 @@ use crate::report::{html, json, table};
 use crate::simulate::{parse_builtin, parse_scale};
 use crate::twin::args::{ModelArgs, SensorArgs};
 use crate::twin::{check_budget, plausible, MeasuredTwin};
-use simrod_io::budget::{BudgetArgs, DEFAULT_GB};
+use simrod_io::budget::BudgetArgs;
 
 /// What `simrod compare --help` explains after the options.
 const HOW: &str = "\
@@ -146,7 +146,7 @@ impl CompareArgs {
             no_history: false,
             baseline_effects: None,
             mask_implausible: false,
-            budget: BudgetArgs { budget_gb: DEFAULT_GB },
+            budget: BudgetArgs::default(),
         }
     }
 }

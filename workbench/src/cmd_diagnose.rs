@@ -31,7 +31,7 @@ use crate::report::table::columns;
 use crate::report::{change_pct, num, pct};
 use crate::twin::args::{ModelArgs, SensorArgs};
 use crate::twin::{check_budget, Aligned, InputSource, MeasuredTwin, ModelOptions};
-use simrod_io::budget::{BudgetArgs, DEFAULT_GB};
+use simrod_io::budget::BudgetArgs;
 
 /// Fewest fitted channels a diagnosis runs on: with fewer, most effects look alike.
 pub const MIN_CHANNELS: usize = 4;
@@ -120,7 +120,7 @@ impl DiagnoseArgs {
             write_effects: None,
             mapping: None,
             threads: None,
-            budget: BudgetArgs { budget_gb: DEFAULT_GB },
+            budget: BudgetArgs::default(),
         }
     }
 }
@@ -176,7 +176,7 @@ impl Diagnosed {
 }
 
 /// One run of a campaign on the twin's grid.
-struct Loaded1 {
+struct RunOnGrid {
     src: String,
     twin: MeasuredTwin,
     al: Aligned,
@@ -190,7 +190,7 @@ fn load_run(
     args: &DiagnoseArgs,
     model: &ModelOptions,
     opts: &LoadOptions,
-) -> Result<Loaded1, CmdError> {
+) -> Result<RunOnGrid, CmdError> {
     let src = path.display().to_string();
     let usage = |e: String| CmdError::Usage(format!("{src}: {e}"));
     let loaded = measure::load_with(path, opts)?;
@@ -212,7 +212,7 @@ fn load_run(
     let mut notes = loaded.notes;
     notes.push(format!("{src}: {}", al.grid.step_note));
     notes.extend(al.grid.data_notes.iter().map(|n| format!("{src}: {n}")));
-    Ok(Loaded1 { src, twin, al, notes })
+    Ok(RunOnGrid { src, twin, al, notes })
 }
 
 /// Load, align and diagnose one run or a campaign of runs; writes nothing.
@@ -303,9 +303,9 @@ struct Fitted {
 
 /// The fitted channels every run has (moved out of the runs' pairs); every sample must
 /// be finite.
-fn fitted_series(runs: &mut [Loaded1], src: &str) -> Result<Fitted, CmdError> {
+fn fitted_series(runs: &mut [RunOnGrid], src: &str) -> Result<Fitted, CmdError> {
     let mut f = Fitted { channels: Vec::new(), series: Vec::new(), missing: Vec::new() };
-    let has = |r: &Loaded1, c: Channel| r.al.channels.iter().any(|p| !p.derived && p.name == c.name());
+    let has = |r: &RunOnGrid, c: Channel| r.al.channels.iter().any(|p| !p.derived && p.name == c.name());
     for c in fitted_channels() {
         if !runs.iter().all(|r| has(r, c)) {
             f.missing.push(c.name());
@@ -343,7 +343,7 @@ fn fitted_series(runs: &mut [Loaded1], src: &str) -> Result<Fitted, CmdError> {
 /// commanded signals), for the error each candidate removes per region, over the runs one
 /// after another: the combined regions holding at least 1 % of the samples, and "at a
 /// limit".
-fn region_masks(runs: &[Loaded1], limits: &regions::Limits) -> Vec<(String, Vec<bool>)> {
+fn region_masks(runs: &[RunOnGrid], limits: &regions::Limits) -> Vec<(String, Vec<bool>)> {
     let classes: Vec<regions::Classification> =
         runs.iter().map(|r| regions::classify(&r.al, &regions::RegionRules::default(), limits)).collect();
     let all = || classes.iter().flat_map(|c| c.classes.iter());

@@ -96,32 +96,30 @@ pub fn windows(r: &[f64], dt: f64, resolution: f64) -> ChannelWindows {
         // The bench's noise grows at its operating limits: the window's own noise level
         // scales the null of its block means and is what its error is measured against.
         let local = hp.sigma(from, to);
-        if let Some(w) =
-            window(&blocks[j..j + dof], &r[from..to], block_sigma * local / noise, local.max(resolution))
-        {
-            windows.push(Window { start: from, len: to - from, ..w });
-        }
+        let null = block_sigma * local / noise;
+        windows.extend(window(&blocks[j..j + dof], &r[from..to], from, null, local.max(resolution)));
         j += step;
     }
     ChannelWindows { windows, block_sigma, noise_sigma: noise }
 }
 
-/// One window's test from its block means, samples, the block means' null spread and
-/// the level its error is compared with; `None` when too little of it is finite.
-fn window(blocks: &[Option<f64>], r: &[f64], block_sigma: f64, floor: f64) -> Option<Window> {
+/// The test of the window of samples `r` starting at sample `start`, from its block
+/// means, the block means' null spread and the level its error is compared with; `None`
+/// when too little of it is finite.
+fn window(blocks: &[Option<f64>], r: &[f64], start: usize, block_sigma: f64, floor: f64) -> Option<Window> {
     let vals: Vec<f64> = blocks.iter().flatten().copied().collect();
     if vals.len() * 2 < blocks.len() || block_sigma.is_nan() || block_sigma <= 0.0 {
         return None;
     }
     let chi2: f64 = vals.iter().map(|b| (b / block_sigma).powi(2)).sum();
     let mean = vals.iter().sum::<f64>() / vals.len() as f64;
-    let finite: Vec<f64> = r.iter().copied().filter(|v| v.is_finite()).collect();
-    let energy_ratio = finite.iter().map(|v| v * v).sum::<f64>()
-        / (finite.len().max(1) as f64 * floor * floor).max(f64::MIN_POSITIVE);
+    let (sum2, count) =
+        r.iter().filter(|v| v.is_finite()).fold((0.0, 0usize), |(s, c), v| (s + v * v, c + 1));
+    let energy_ratio = sum2 / (count.max(1) as f64 * floor * floor).max(f64::MIN_POSITIVE);
     let even = vals.len() & !1;
     Some(Window {
-        start: 0,
-        len: 0,
+        start,
+        len: r.len(),
         chi2,
         dof: vals.len(),
         p: chi2_sf_even(chi2 * even as f64 / vals.len() as f64, even.max(2)),

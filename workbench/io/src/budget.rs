@@ -18,6 +18,13 @@ pub struct BudgetArgs {
     pub budget_gb: f64,
 }
 
+impl Default for BudgetArgs {
+    /// The flag's default, for callers in code.
+    fn default() -> Self {
+        Self { budget_gb: DEFAULT_GB }
+    }
+}
+
 impl BudgetArgs {
     /// The budget the flag sets.
     pub fn budget(&self) -> Budget {
