@@ -13,6 +13,7 @@
 
 use core::fmt;
 
+use crate::chain::N_MEASURED;
 use crate::params::Params;
 use crate::profile::Builtin;
 
@@ -152,6 +153,9 @@ pub struct Proof {
 pub struct ParamDecl {
     /// Name in effect files.
     pub name: &'static str,
+    /// `effect.parameter`, e.g. `sensor_lag.c_kistler_l`: the cause's name when each
+    /// parameter is a cause of its own ([`Cause::PerParameter`]).
+    pub path: &'static str,
     /// Unit (`-` for factors).
     pub unit: &'static str,
     /// One line: what it is.
@@ -187,6 +191,19 @@ pub struct EffectDecl {
     pub params: &'static [ParamDecl],
     /// Hidden-effect proof case; `Some` exactly for the diagnose library.
     pub proof: Option<Proof>,
+    /// Whether its parameters act together or each on its own.
+    pub cause: Cause,
+}
+
+/// What `simrod diagnose` fits as one candidate cause.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Cause {
+    /// All parameters together: one physical mechanism (friction's Coulomb and viscous
+    /// parts).
+    Whole,
+    /// Each parameter alone: the measurement chain of one channel, a sensor cause that
+    /// moves that channel only (an offset on C_Kistler_L says nothing of I_DC's).
+    PerParameter,
 }
 
 impl EffectDecl {
@@ -263,7 +280,7 @@ impl Slot for Option<f32> {
 macro_rules! effects {
     ($(
         $(#[doc = $doc:literal])*
-        $id:ident => $field:ident : $ty:ty = $neutral:expr, proof $proof:expr;
+        $id:ident => $field:ident : $ty:ty = $neutral:expr, proof $proof:expr, $cause:ident;
         {$(
             $param:ident ($($acc:tt)*) : $unit:literal, $range:expr, fit $fit:expr, model $model:expr,
                 $pdoc:literal;
@@ -318,6 +335,19 @@ macro_rules! effects {
             }
         }
 
+        impl Effects {
+            /// Every parameter's value in declaration order (`None`: an unset override).
+            fn param_values(&self) -> [Option<f32>; N_PARAMS] {
+                [$($(Slot::read(&self.$field $($acc)*),)+)+]
+            }
+        }
+
+        /// Number of declared parameters.
+        const N_PARAMS: usize = [$($(stringify!($param),)+)+].len();
+
+        /// Every effect id, in declaration order.
+        pub const EFFECT_IDS: &[&str] = &[$(stringify!($id)),+];
+
         /// Every effect, as declared, in declaration order.
         pub const EFFECTS: &[EffectDecl] = &[$(
             EffectDecl {
@@ -326,6 +356,7 @@ macro_rules! effects {
                 params: &[$(
                     ParamDecl {
                         name: stringify!($param),
+                        path: concat!(stringify!($id), ".", stringify!($param)),
                         unit: $unit,
                         doc: $pdoc,
                         range: $range,
@@ -334,6 +365,7 @@ macro_rules! effects {
                     },
                 )+],
                 proof: $proof,
+                cause: Cause::$cause,
             },
         )+];
 
@@ -358,6 +390,20 @@ const SCALE: Range = Range::closed(0.1, 10.0);
 const GAIN: Range = Range::closed(0.1, 10.0);
 const FACTOR: Option<Fit> = Some(Fit::abs(0.05, 0.1, 5.0));
 const SENSOR_GAIN: Option<Fit> = Some(Fit::abs(0.02, 0.5, 2.0));
+const SPEED_GAIN: Option<Fit> = Some(Fit::abs(0.01, 0.5, 2.0));
+// A sensor offset may be about a tenth of the channel's span; the search a third of that.
+const OFFSET_V: Range = Range::closed(-30.0, 30.0);
+const OFFSET_RPM: Range = Range::closed(-5000.0, 5000.0);
+const OFFSET_NM: Range = Range::closed(-200.0, 200.0);
+const OFFSET_A: Range = Range::closed(-200.0, 200.0);
+const OFFSET_V_FIT: Option<Fit> = Some(Fit::abs(0.1, -5.0, 5.0));
+const OFFSET_RPM_FIT: Option<Fit> = Some(Fit::abs(10.0, -500.0, 500.0));
+const OFFSET_NM_FIT: Option<Fit> = Some(Fit::abs(1.0, -60.0, 60.0));
+const OFFSET_A_FIT: Option<Fit> = Some(Fit::abs(0.5, -30.0, 30.0));
+/// A sensor's lag or delay [s]: up to a second (far beyond a real chain's 1-100 ms).
+const SENSOR_TIME: Range = Range::closed(0.0, 1.0);
+const LAG_FIT: Option<Fit> = Some(Fit::abs(0.01, 0.0, 0.2));
+const DELAY_FIT: Option<Fit> = Some(Fit::abs(0.02, 0.0, 0.1).in_whole_steps());
 
 // The order is the diagnose library's order (its ranking breaks ties by it) and the
 // order of sections in written effect files.
@@ -365,7 +411,7 @@ effects! {
     /// Torque lost at the differential case (thesis 7: "missing").
     differential_friction => differential_friction: DifferentialFriction =
         DifferentialFriction { coulomb_nm: 0.0, viscous_nm_s: 0.0 },
-        proof proof("coulomb_nm", 2.0, 6.0, TP07, (1.0, 1.0));
+        proof proof("coulomb_nm", 2.0, 6.0, TP07, (1.0, 1.0)), Whole;
     {
         coulomb_nm(.coulomb_nm): "N m", Range::closed(0.0, 200.0), fit Some(Fit::abs(1.0, 0.0, 60.0)), model None,
             "Coulomb friction torque at the case, axle frame (0 = off)";
@@ -374,14 +420,14 @@ effects! {
     }
     /// Multipliers on the L, R friction maps (1 = off).
     axle_friction_scale => axle_friction_scale: [f32; 2] = [1.0, 1.0],
-        proof proof("left", 1.15, 1.4, TP11, (0.79, 0.0));
+        proof proof("left", 1.15, 1.4, TP11, (0.79, 0.0)), Whole;
     {
         left([0]): "-", Range::closed(0.0, 10.0), fit FACTOR, model None, "multiplies the L friction map (1 = off)";
         right([1]): "-", Range::closed(0.0, 10.0), fit FACTOR, model None, "multiplies the R friction map (1 = off)";
     }
     /// Free play in the SuT gearbox.
     gear_backlash => gear_backlash: GearBacklash = GearBacklash { backlash_deg: 0.0 },
-        proof proof("backlash_deg", 1.0, 4.0, TP07, (1.0, 1.0));
+        proof proof("backlash_deg", 1.0, 4.0, TP07, (1.0, 1.0)), Whole;
     {
         backlash_deg(.backlash_deg): "deg", Range::closed(0.0, 30.0), fit Some(Fit::abs(0.5, 0.0, 20.0)),
             model None, "total free play at the differential case (0 = off)";
@@ -389,7 +435,7 @@ effects! {
     /// [s] pure delay between the throttle and the speed controller (thesis 6.1).
     /// Capped at `DELAY_CAPACITY` steps.
     controller_delay => controller_delay_s: f32 = 0.0,
-        proof proof("delay_s", 0.05, 0.15, TP14, (1.0, 0.0));
+        proof proof("delay_s", 0.05, 0.15, TP14, (1.0, 0.0)), Whole;
     {
         delay_s(): "s", Range::closed(0.0, 10.0), fit Some(Fit::abs(0.02, 0.0, 0.25).in_whole_steps()), model None,
             "throttle-to-controller delay, at most 256 steps (0 = off)";
@@ -397,7 +443,7 @@ effects! {
     /// Multipliers on the Curtis ramp rates `[accel, decel]` for `[forward, reverse]`
     /// (1 = off).
     inverter_rate_scale => inverter_rate_scale: [[f32; 2]; 2] = [[1.0, 1.0], [1.0, 1.0]],
-        proof proof("decel_fwd", 0.7, 0.9, TP14, (1.0, 0.0));
+        proof proof("decel_fwd", 0.7, 0.9, TP14, (1.0, 0.0)), Whole;
     {
         accel_fwd([0][0]): "-", SCALE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
             "multiplies the forward acceleration rates (1 = off)";
@@ -410,21 +456,21 @@ effects! {
     }
     /// [N m/rad] replaces the coupling stiffness when set.
     coupling_stiffness => coupling_stiffness: Option<f32> = None,
-        proof proof("stiffness_nm_per_rad", 6000.0, 12000.0, TP07, (1.0, 1.0));
+        proof proof("stiffness_nm_per_rad", 6000.0, 12000.0, TP07, (1.0, 1.0)), Whole;
     {
         stiffness_nm_per_rad(): "N m/rad", Range::closed(100.0, 1.0e6), fit Some(Fit::rel(0.2, 300.0, 60_000.0)),
             model Some(|p| p.coupling_stiffness), "replaces the flexible coupling stiffness";
     }
     /// [N m s/rad] replaces the coupling damping when set.
     coupling_damping => coupling_damping: Option<f32> = None,
-        proof proof("damping_nm_s_per_rad", 10.0, 30.0, TP07, (1.0, 1.0));
+        proof proof("damping_nm_s_per_rad", 10.0, 30.0, TP07, (1.0, 1.0)), Whole;
     {
         damping_nm_s_per_rad(): "N m s/rad", Range::closed(0.0, 1000.0), fit Some(Fit::abs(2.0, 0.0, 300.0)),
             model Some(|p| p.coupling_damping), "replaces the flexible coupling damping";
     }
     /// Multipliers on the SuT, load L, load R inertias (1 = off).
     inertia_scale => inertia_scale: [f32; 3] = [1.0, 1.0, 1.0],
-        proof proof("sut", 1.2, 1.5, TP14, (1.0, 0.0));
+        proof proof("sut", 1.2, 1.5, TP14, (1.0, 0.0)), Whole;
     {
         sut([0]): "-", SCALE, fit FACTOR, model None, "multiplies the SuT-side inertia (1 = off)";
         load_l([1]): "-", SCALE, fit FACTOR, model None, "multiplies the load L inertia (1 = off)";
@@ -432,62 +478,150 @@ effects! {
     }
     /// [ohm] replaces the connector resistance when set.
     connector_resistance => connector_resistance: Option<f32> = None,
-        proof proof("resistance_ohm", 0.025, 0.04, TP11, (0.79, 1.0));
+        proof proof("resistance_ohm", 0.025, 0.04, TP11, (0.79, 1.0)), Whole;
     {
         resistance_ohm(): "ohm", Range::closed(0.0, 1.0), fit Some(Fit::abs(0.005, 0.0, 0.3)),
             model Some(|p| p.connector_resistance), "replaces the busbar-to-inverter connector resistance";
     }
     /// [ohm] DPU source resistance: the busbars sag with current.
     supply_resistance => supply_resistance: f32 = 0.0,
-        proof proof("resistance_ohm", 0.005, 0.02, TP11, (0.79, 1.0));
+        proof proof("resistance_ohm", 0.005, 0.02, TP11, (0.79, 1.0)), Whole;
     {
         resistance_ohm(): "ohm", Range::half_open(0.0, 1.0), fit Some(Fit::abs(0.005, 0.0, 0.5)),
             model None, "DPU source resistance (0 = off)";
     }
     /// [-] fraction of regenerated power additionally lost (0 = off).
     regen_efficiency => regen_loss: f32 = 0.0,
-        proof proof("extra_loss", 0.1, 0.3, TP07, (1.0, 1.0));
+        proof proof("extra_loss", 0.1, 0.3, TP07, (1.0, 1.0)), Whole;
     {
         extra_loss(): "-", Range::half_open(0.0, 1.0), fit Some(Fit::abs(0.05, 0.0, 0.9)), model None,
             "fraction of regenerated power additionally lost (0 = off)";
     }
-    /// [N m] added to C_Kistler_L, C_Kistler_R.
-    torque_sensor_offset => torque_sensor_offset: [f32; 2] = [0.0, 0.0],
-        proof proof("left_nm", 0.5, 2.0, TP11, (0.79, 0.0));
+    /// [-] multiplies each measured channel at its sensor (1 = off).
+    sensor_gain => sensor_gain: [f32; N_MEASURED] = [1.0; N_MEASURED],
+        proof proof("c_kistler_r", 1.02, 1.06, TP07, (1.0, 1.0)), PerParameter;
     {
-        left_nm([0]): "N m", Range::closed(-200.0, 200.0), fit Some(Fit::abs(1.0, -60.0, 60.0)), model None,
-            "added to C_Kistler_L (0 = off)";
-        right_nm([1]): "N m", Range::closed(-200.0, 200.0), fit Some(Fit::abs(1.0, -60.0, 60.0)), model None,
-            "added to C_Kistler_R (0 = off)";
+        throttle([0]): "-", GAIN, fit SPEED_GAIN, model None, "multiplies Throttle (1 = off)";
+        sutmotorenc([1]): "-", GAIN, fit SPEED_GAIN, model None, "multiplies SuTMotorEnc (1 = off)";
+        c_kistler_l([2]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies C_Kistler_L (1 = off)";
+        c_kistler_r([3]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies C_Kistler_R (1 = off)";
+        t_kistler_l([4]): "-", GAIN, fit SPEED_GAIN, model None, "multiplies T_Kistler_L (1 = off)";
+        t_kistler_r([5]): "-", GAIN, fit SPEED_GAIN, model None, "multiplies T_Kistler_R (1 = off)";
+        siemensenc([6]): "-", GAIN, fit SPEED_GAIN, model None, "multiplies SiemensEnc (1 = off)";
+        i_xlml_2_2([7]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies I_XLML 2.2 (1 = off)";
+        i_xlml_bu1([8]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies I_XLML BU1 (1 = off)";
+        i_xlmr_2_3([9]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies I_XLMR 2.3 (1 = off)";
+        i_dpu_2_7([10]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies I_DPU 2.7 (1 = off)";
+        v_dc_busbars([11]): "-", GAIN, fit SPEED_GAIN, model None, "multiplies V_DC_busbars (1 = off)";
+        i_dc([12]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies I_DC (1 = off)";
+        v_dc([13]): "-", GAIN, fit SPEED_GAIN, model None, "multiplies V_DC (1 = off)";
     }
-    /// [-] multiplies C_Kistler_L, C_Kistler_R (1 = off).
-    torque_sensor_gain => torque_sensor_gain: [f32; 2] = [1.0, 1.0],
-        proof proof("right", 1.02, 1.06, TP07, (1.0, 1.0));
+    /// Added to each measured channel at its sensor, in the channel's unit (0 = off).
+    sensor_offset => sensor_offset: [f32; N_MEASURED] = [0.0; N_MEASURED],
+        proof proof("c_kistler_l", 0.5, 2.0, TP11, (0.79, 0.0)), PerParameter;
     {
-        left([0]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies C_Kistler_L (1 = off)";
-        right([1]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies C_Kistler_R (1 = off)";
+        throttle([0]): "V", OFFSET_V, fit OFFSET_V_FIT, model None, "added to Throttle (0 = off)";
+        sutmotorenc([1]): "rpm", OFFSET_RPM, fit OFFSET_RPM_FIT, model None, "added to SuTMotorEnc (0 = off)";
+        c_kistler_l([2]): "N m", OFFSET_NM, fit OFFSET_NM_FIT, model None, "added to C_Kistler_L (0 = off)";
+        c_kistler_r([3]): "N m", OFFSET_NM, fit OFFSET_NM_FIT, model None, "added to C_Kistler_R (0 = off)";
+        t_kistler_l([4]): "rpm", OFFSET_RPM, fit OFFSET_RPM_FIT, model None, "added to T_Kistler_L (0 = off)";
+        t_kistler_r([5]): "rpm", OFFSET_RPM, fit OFFSET_RPM_FIT, model None, "added to T_Kistler_R (0 = off)";
+        siemensenc([6]): "rpm", OFFSET_RPM, fit OFFSET_RPM_FIT, model None, "added to SiemensEnc (0 = off)";
+        i_xlml_2_2([7]): "A", OFFSET_A, fit OFFSET_A_FIT, model None, "added to I_XLML 2.2 (0 = off)";
+        i_xlml_bu1([8]): "A", OFFSET_A, fit OFFSET_A_FIT, model None, "added to I_XLML BU1 (0 = off)";
+        i_xlmr_2_3([9]): "A", OFFSET_A, fit OFFSET_A_FIT, model None, "added to I_XLMR 2.3 (0 = off)";
+        i_dpu_2_7([10]): "A", OFFSET_A, fit OFFSET_A_FIT, model None, "added to I_DPU 2.7 (0 = off)";
+        v_dc_busbars([11]): "V", OFFSET_V, fit OFFSET_V_FIT, model None, "added to V_DC_busbars (0 = off)";
+        i_dc([12]): "A", OFFSET_A, fit OFFSET_A_FIT, model None, "added to I_DC (0 = off)";
+        v_dc([13]): "V", OFFSET_V, fit OFFSET_V_FIT, model None, "added to V_DC (0 = off)";
     }
-    /// [-] multiplies SuTMotorEnc, T_Kistler_L, T_Kistler_R, SiemensEnc (1 = off).
-    speed_sensor_gain => speed_sensor_gain: [f32; 4] = [1.0; 4],
-        proof proof("sut_motor", 1.01, 1.03, TP11, (0.79, 0.0));
+    /// [s] time constant of each measured channel's amplifier or filter, a first-order
+    /// lag (0 = off).
+    sensor_lag => sensor_lag_s: [f32; N_MEASURED] = [0.0; N_MEASURED],
+        proof proof("c_kistler_l", 0.02, 0.06, TP07, (1.0, 1.0)), PerParameter;
     {
-        sut_motor([0]): "-", GAIN, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
-            "multiplies SuTMotorEnc (1 = off)";
-        flange_l([1]): "-", GAIN, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
-            "multiplies T_Kistler_L (1 = off)";
-        flange_r([2]): "-", GAIN, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
-            "multiplies T_Kistler_R (1 = off)";
-        siemens([3]): "-", GAIN, fit Some(Fit::abs(0.01, 0.5, 2.0)), model None,
-            "multiplies SiemensEnc (1 = off)";
+        throttle([0]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of Throttle (0 = off)";
+        sutmotorenc([1]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of SuTMotorEnc (0 = off)";
+        c_kistler_l([2]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of C_Kistler_L (0 = off)";
+        c_kistler_r([3]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of C_Kistler_R (0 = off)";
+        t_kistler_l([4]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of T_Kistler_L (0 = off)";
+        t_kistler_r([5]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of T_Kistler_R (0 = off)";
+        siemensenc([6]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of SiemensEnc (0 = off)";
+        i_xlml_2_2([7]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of I_XLML 2.2 (0 = off)";
+        i_xlml_bu1([8]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of I_XLML BU1 (0 = off)";
+        i_xlmr_2_3([9]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of I_XLMR 2.3 (0 = off)";
+        i_dpu_2_7([10]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of I_DPU 2.7 (0 = off)";
+        v_dc_busbars([11]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of V_DC_busbars (0 = off)";
+        i_dc([12]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of I_DC (0 = off)";
+        v_dc([13]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of V_DC (0 = off)";
     }
-    /// [-] multiplies I_DPU 2.7, I_DC, the two I_XLML probes, I_XLMR 2.3 (1 = off).
-    current_sensor_gain => current_sensor_gain: [f32; 4] = [1.0; 4],
-        proof proof("dpu", 1.02, 1.06, TP07, (1.0, 1.0));
+    /// [s] each measured channel recorded late, in whole steps; all channels together at
+    /// most `SENSOR_DELAY_CAPACITY` steps (0 = off).
+    sensor_delay => sensor_delay_s: [f32; N_MEASURED] = [0.0; N_MEASURED],
+        proof proof("sutmotorenc", 0.03, 0.08, TP14, (1.0, 0.0)), PerParameter;
     {
-        dpu([0]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies I_DPU 2.7 (1 = off)";
-        dc([1]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies I_DC (1 = off)";
-        xlml([2]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies both I_XLML probes (1 = off)";
-        xlmr([3]): "-", GAIN, fit SENSOR_GAIN, model None, "multiplies I_XLMR 2.3 (1 = off)";
+        throttle([0]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "Throttle recorded late by (0 = off)";
+        sutmotorenc([1]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "SuTMotorEnc recorded late by (0 = off)";
+        c_kistler_l([2]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "C_Kistler_L recorded late by (0 = off)";
+        c_kistler_r([3]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "C_Kistler_R recorded late by (0 = off)";
+        t_kistler_l([4]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "T_Kistler_L recorded late by (0 = off)";
+        t_kistler_r([5]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "T_Kistler_R recorded late by (0 = off)";
+        siemensenc([6]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "SiemensEnc recorded late by (0 = off)";
+        i_xlml_2_2([7]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "I_XLML 2.2 recorded late by (0 = off)";
+        i_xlml_bu1([8]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "I_XLML BU1 recorded late by (0 = off)";
+        i_xlmr_2_3([9]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "I_XLMR 2.3 recorded late by (0 = off)";
+        i_dpu_2_7([10]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "I_DPU 2.7 recorded late by (0 = off)";
+        v_dc_busbars([11]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "V_DC_busbars recorded late by (0 = off)";
+        i_dc([12]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "I_DC recorded late by (0 = off)";
+        v_dc([13]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "V_DC recorded late by (0 = off)";
+    }
+}
+
+/// Each parameter's range, in declaration order: all the target's check reads
+/// (computed at compile time from the declarations, which stay out of flash).
+const RANGES: [Range; N_PARAMS] = {
+    let mut out = [Range::closed(0.0, 0.0); N_PARAMS];
+    let (mut i, mut e) = (0, 0);
+    while e < EFFECTS.len() {
+        let mut p = 0;
+        while p < EFFECTS[e].params.len() {
+            out[i] = EFFECTS[e].params[p].range;
+            (i, p) = (i + 1, p + 1);
+        }
+        e += 1;
+    }
+    out
+};
+
+/// Each parameter's (effect index, index within the effect), in declaration order.
+const OWNERS: [(u8, u8); N_PARAMS] = {
+    let mut out = [(0, 0); N_PARAMS];
+    let (mut i, mut e) = (0, 0);
+    while e < EFFECTS.len() {
+        let mut p = 0;
+        while p < EFFECTS[e].params.len() {
+            out[i] = (e as u8, p as u8);
+            (i, p) = (i + 1, p + 1);
+        }
+        e += 1;
+    }
+    out
+};
+
+impl Effects {
+    /// The first parameter outside its declared range: (effect index, parameter index,
+    /// value).
+    fn first_invalid(&self) -> Option<(usize, usize, f32)> {
+        let values = self.param_values();
+        let checks = values.iter().zip(RANGES.iter()).zip(OWNERS.iter());
+        for ((v, range), (e, p)) in checks {
+            if let Some(v) = *v {
+                if !range.contains(v) {
+                    return Some((usize::from(*e), usize::from(*p), v));
+                }
+            }
+        }
+        None
     }
 }
 
@@ -558,23 +692,22 @@ impl Effects {
         *self == Self::NONE
     }
 
-    /// Check every parameter against its declared range; the first one refused.
+    /// Check every parameter against its declared range; the first one refused. (An
+    /// unset override keeps the model's value, checked with the model.)
     pub fn check(&self) -> Result<(), Invalid> {
-        for e in EFFECTS {
-            for p in e.params {
-                // An unset override keeps the model's value, checked with the model.
-                let Ok(Some(v)) = self.get(e.id, p.name) else { continue };
-                if !p.range.contains(v) {
-                    return Err(Invalid { effect: e, param: p, value: v });
-                }
-            }
+        let Some((e, p, value)) = self.first_invalid() else { return Ok(()) };
+        match EFFECTS.get(e).and_then(|d| Some((d, d.params.get(p)?))) {
+            Some((effect, param)) => Err(Invalid { effect, param, value }),
+            None => Ok(()),
         }
-        Ok(())
     }
 
     /// Check ranges; returns the id of the first effect with an invalid parameter.
     pub fn validate(&self) -> Result<(), &'static str> {
-        self.check().map_err(|e| e.effect.id)
+        match self.first_invalid() {
+            Some((e, ..)) => Err(EFFECT_IDS.get(e).copied().unwrap_or("effects")),
+            None => Ok(()),
+        }
     }
 }
 
@@ -635,4 +768,31 @@ impl fmt::Display for KeyErrorText<'_> {
 /// Every effect id, as used in effect files.
 pub fn effect_ids() -> impl Iterator<Item = &'static str> + Clone {
     EFFECTS.iter().map(|e| e.id)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The generated range check refuses exactly the parameter whose declared range a
+    /// value leaves, and names it; the range's ends, where inclusive, pass.
+    #[test]
+    fn every_parameter_is_checked_against_its_own_range() {
+        for e in EFFECTS {
+            for p in e.params {
+                let mut fx = Effects::NONE;
+                let above = p.range.max + 0.5 * p.range.max.abs() + 1.0;
+                fx.set(e.id, p.name, above).unwrap();
+                let bad = fx.check().unwrap_err();
+                assert_eq!((bad.effect.id, bad.param.name, bad.value), (e.id, p.name, above));
+                assert_eq!(fx.validate(), Err(e.id));
+                for (end, inclusive) in
+                    [(p.range.min, p.range.min_inclusive), (p.range.max, p.range.max_inclusive)]
+                {
+                    fx.set(e.id, p.name, end).unwrap();
+                    assert_eq!(fx.check().is_ok(), inclusive, "{}.{} = {end}", e.id, p.name);
+                }
+            }
+        }
+    }
 }

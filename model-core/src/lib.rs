@@ -16,6 +16,8 @@
 //! - [`drivetrain`]: mechanics, discretized exactly (see there for the 2 kHz flange mode).
 //! - [`electrics`]: supply, connector, power maps, rate limiters.
 //! - [`effects`]: physical effects beyond the thesis, off by default, each declared once.
+//! - [`chain`]: each measured channel's sensor, amplifier and acquisition (gain, offset,
+//!   lag, delay).
 //! - [`outputs`]: the bench's channels.
 //! - [`data`]: the maps and parameters, compiled into flash from `data/` by `build.rs`.
 //!
@@ -31,6 +33,7 @@
 #![forbid(unsafe_code)]
 
 pub mod backlash;
+pub mod chain;
 pub mod controller;
 pub mod curtis;
 pub mod data;

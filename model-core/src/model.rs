@@ -7,6 +7,7 @@
 //! taking its own state struct, called from one place in [`Model::step`].
 
 use crate::backlash::{Backlash, BacklashState};
+use crate::chain::{Chain, ChainState};
 use crate::controller::{PidConfig, PidState};
 use crate::curtis::{self, RateCase};
 use crate::data::Maps;
@@ -14,7 +15,7 @@ use crate::delay::{Delay, DelayState};
 use crate::drivetrain::{SideDisc, SideParams, NS, PHI_AF, RAD_S_PER_RPM, RPM_PER_RAD_S, W_A, W_F, W_L};
 use crate::effects::Effects;
 use crate::electrics::{connector, RateLimiter};
-use crate::outputs::{Channel as C, Outputs};
+use crate::outputs::{Channel as C, Outputs, MEASURED};
 use crate::params::{Params, SpeedTarget};
 use crate::profile::SetPoints;
 use crate::table::{locate_hinted, Loc, Table2};
@@ -137,6 +138,8 @@ struct Coeffs {
     backlash: Backlash,
     /// [ohm] connector resistance.
     r_conn: f32,
+    /// Each measured channel's sensor, amplifier and acquisition.
+    chain: Chain,
 }
 
 /// Everything the step changes: one fixed-size struct, no heap.
@@ -160,6 +163,7 @@ struct State {
     t_us: u64,
     /// Search hints for the table lookups (see `table::locate_hinted`).
     hints: Hints,
+    chain: ChainState,
 }
 
 /// The twin: maps, coefficients and state.
@@ -253,6 +257,7 @@ impl<'a> Model<'a> {
             delay: Delay::new(fx.controller_delay_s, dt_s),
             backlash,
             r_conn,
+            chain: Chain::new(fx.sensor_gain, fx.sensor_offset, fx.sensor_lag_s, fx.sensor_delay_s, dt_s),
         };
         let s = State {
             x: [[0.0; NS]; 2],
@@ -268,6 +273,7 @@ impl<'a> Model<'a> {
             v_b: 0.0,
             t_us: 0,
             hints: Hints::default(),
+            chain: ChainState::default(),
         };
         Ok(Self {
             maps,
@@ -489,7 +495,7 @@ impl<'a> Model<'a> {
         })
     }
 
-    fn outputs(&self, sig: &StepSignals) -> Outputs {
+    fn outputs(&mut self, sig: &StepSignals) -> Outputs {
         let StepSignals {
             thr_sp,
             load_sp,
@@ -505,45 +511,45 @@ impl<'a> Model<'a> {
             i_ld,
         } = *sig;
         let p = &self.c.p;
-        let fx = &self.c.fx;
         let [xl, xr] = self.s.x;
         let flange = |x: &[f32; NS], s: &SideParams| s.k_f * x[PHI_AF] + s.c_f * (x[W_A] - x[W_F]);
         let [sl, sr] = &self.c.side;
-        let tq = [flange(&xl, sl), flange(&xr, sr)];
-        let sg = fx.speed_sensor_gain;
-        let cg = fx.current_sensor_gain;
         let motor_rpm = p.sut_gear_ratio * 0.5 * (xl[W_A] + xr[W_A]) * RPM_PER_RAD_S;
-
-        let c_l = tq[0] * fx.torque_sensor_gain[0] + fx.torque_sensor_offset[0];
-        let c_r = tq[1] * fx.torque_sensor_gain[1] + fx.torque_sensor_offset[1];
-        let t_l = xl[W_F] * RPM_PER_RAD_S * sg[1];
-        let t_r = xr[W_F] * RPM_PER_RAD_S * sg[2];
-        let i_dpu = (i_dc + i_ld[0] + i_ld[1]) * cg[0];
-        let i_dc_m = i_dc * cg[1];
-        let i_xlml = 0.5 * i_ld[0] * cg[2];
-        let i_xlmr = 0.5 * i_ld[1] * cg[3];
+        let i_xlml = 0.5 * i_ld[0];
+        // The physical values of the measured channels, in `MEASURED` order.
+        let raw = [
+            throttle::voltage(p, thr_sp),
+            motor_rpm,
+            flange(&xl, sl),
+            flange(&xr, sr),
+            xl[W_F] * RPM_PER_RAD_S,
+            xr[W_F] * RPM_PER_RAD_S,
+            xr[W_L] * RPM_PER_RAD_S,
+            i_xlml,
+            i_xlml,
+            0.5 * i_ld[1],
+            i_dc + i_ld[0] + i_ld[1],
+            v_b,
+            i_dc,
+            v_dc,
+        ];
+        let m = self.c.chain.apply(&mut self.s.chain, &raw);
 
         let mut o = Outputs { t_us: self.s.t_us, ..Outputs::default() };
-        o.set(C::Throttle, throttle::voltage(p, thr_sp));
-        o.set(C::SuTMotorEnc, motor_rpm * sg[0]);
-        o.set(C::CKistlerL, c_l);
-        o.set(C::CKistlerR, c_r);
-        o.set(C::TKistlerL, t_l);
-        o.set(C::TKistlerR, t_r);
-        o.set(C::SiemensEnc, xr[W_L] * RPM_PER_RAD_S * sg[3]);
-        o.set(C::IXlml22, i_xlml);
-        o.set(C::IXlmlBu1, i_xlml);
-        o.set(C::IXlmr23, i_xlmr);
-        o.set(C::IDpu27, i_dpu);
-        o.set(C::VDcBusbars, v_b);
-        o.set(C::IDc, i_dc_m);
-        o.set(C::VDc, v_dc);
+        for (c, v) in MEASURED.iter().zip(m) {
+            o.set(*c, v);
+        }
+        let g = |c: C| o.get(c);
+        let (c_l, c_r, t_l, t_r) = (g(C::CKistlerL), g(C::CKistlerR), g(C::TKistlerL), g(C::TKistlerR));
+        let (v_b, v_dc, i_dc) = (g(C::VDcBusbars), g(C::VDc), g(C::IDc));
+        let (i_dpu, i_xlmr) = (g(C::IDpu27), g(C::IXlmr23));
+        let i_xlml_sum = g(C::IXlml22) + g(C::IXlmlBu1);
         // Derived exactly as the thesis computes them from the measured channels (5.13).
         o.set(C::PDpu, v_b * i_dpu);
-        o.set(C::PSutInv, v_dc * i_dc_m);
-        o.set(C::PLml, (i_xlml + i_xlml) * v_b);
+        o.set(C::PSutInv, v_dc * i_dc);
+        o.set(C::PLml, i_xlml_sum * v_b);
         o.set(C::PLmr, 2.0 * i_xlmr * v_b);
-        o.set(C::PConn, (v_b - v_dc) * i_dc_m);
+        o.set(C::PConn, (v_b - v_dc) * i_dc);
         o.set(C::TorqueTot, 0.5 * (c_l + c_r));
         o.set(C::TorqueDiff, c_l - c_r);
         o.set(C::SpeedTot, 0.5 * (t_l + t_r));

@@ -28,10 +28,10 @@ fn every_effect_changes_the_outputs_and_none_is_bit_identical() {
         ("connector_resistance", "resistance_ohm", 0.04),
         ("supply_resistance", "resistance_ohm", 0.01),
         ("regen_efficiency", "extra_loss", 0.2),
-        ("torque_sensor_offset", "left_nm", 1.0),
-        ("torque_sensor_gain", "right", 1.05),
-        ("speed_sensor_gain", "sut_motor", 1.02),
-        ("current_sensor_gain", "dpu", 1.03),
+        ("sensor_offset", "c_kistler_l", 1.0),
+        ("sensor_gain", "c_kistler_r", 1.05),
+        ("sensor_gain", "sutmotorenc", 1.02),
+        ("sensor_gain", "i_dpu_2_7", 1.03),
     ];
     for (id, param, v) in cases {
         let mut fx = Effects::NONE;

@@ -432,6 +432,7 @@ pub fn render(d: &Diagnosed) -> String {
         "predicted".into(),
         "confirmed".into(),
         "significant".into(),
+        "cause".into(),
         "parameters (± 95 %)".into(),
     ]];
     for c in g.ranking.iter().take(SHOWN) {
@@ -440,10 +441,11 @@ pub fn render(d: &Diagnosed) -> String {
             pct(c.predicted_reduction),
             c.confirmed_reduction.map_or("-".into(), pct),
             if c.significant { "yes" } else { "no" }.into(),
+            if c.is_sensor() { "sensor" } else { "physical" }.into(),
             params_text(c),
         ]);
     }
-    o.push_str(&columns(&rows, &[0, 3, 4]));
+    o.push_str(&columns(&rows, &[0, 3, 4, 5]));
     if g.ranking.len() > SHOWN {
         o.push_str(&format!(
             "  ({} more effects remove less; all of them in --json)\n",
@@ -552,7 +554,7 @@ fn kind_name(k: &VerdictKind) -> &'static str {
 /// `{"source", "kind", "verdict", "excess_ratio", "ranking": [{"effect", "params":
 /// {name: value}, "uncertainty": {name: std}, "ci95": {name: [lo, hi]}, "units",
 /// "error_reduction", "predicted_reduction", "confirmed_reduction", "significant",
-/// "channels": [...]}], "selected", "confounded", "unexplained", "noise": {channel: σ},
+/// "cause": "sensor"|"physical", "moves": [channel], "leaves_structure", "channels": [...]}], "selected", "confounded", "unexplained", "noise": {channel: σ},
 /// "proposed_effects": TOML text or null, "setup", "timing_s"}`. NaN becomes null.
 pub fn to_json(d: &Diagnosed) -> Value {
     let g = &d.diagnosis;
@@ -573,6 +575,9 @@ pub fn to_json(d: &Diagnosed) -> Value {
                 "predicted_reduction": c.predicted_reduction,
                 "confirmed_reduction": c.confirmed_reduction,
                 "significant": c.significant,
+                "cause": if c.is_sensor() { "sensor" } else { "physical" },
+                "moves": c.moves,
+                "leaves_structure": c.leaves_structure,
                 "channels": c.channels,
                 "regions": c.regions,
             })

@@ -44,7 +44,7 @@ fn clean_bench_file_compares_to_zero_in_json() {
 #[test]
 fn hidden_offset_is_found_and_reported_in_html() {
     let d = tempfile::tempdir().unwrap();
-    std::fs::write(d.path().join("fx.toml"), "[torque_sensor_offset]\nleft_nm = 2.0\n").unwrap();
+    std::fs::write(d.path().join("fx.toml"), "[sensor_offset]\nc_kistler_l = 2.0\n").unwrap();
     ok(&simrod(
         d.path(),
         &[

@@ -53,10 +53,10 @@ library_tests! {
     finds_connector_resistance => "connector_resistance",
     finds_supply_resistance => "supply_resistance",
     finds_regen_efficiency => "regen_efficiency",
-    finds_torque_sensor_offset => "torque_sensor_offset",
-    finds_torque_sensor_gain => "torque_sensor_gain",
-    finds_speed_sensor_gain => "speed_sensor_gain",
-    finds_current_sensor_gain => "current_sensor_gain",
+    finds_sensor_gain => "sensor_gain",
+    finds_sensor_offset => "sensor_offset",
+    finds_sensor_lag => "sensor_lag",
+    finds_sensor_delay => "sensor_delay",
 }
 
 #[test]
@@ -87,12 +87,12 @@ fn nothing_hidden_nothing_claimed() {
 fn two_hidden_effects_are_found_in_two_rounds() {
     let mut truth = Effects::NONE;
     truth.set("differential_friction", "coulomb_nm", 4.0).unwrap();
-    truth.set("torque_sensor_offset", "left_nm", 1.5).unwrap();
+    truth.set("sensor_offset", "c_kistler_l", 1.5).unwrap();
     let run = bench_run(&truth, (Builtin::TP07, 1.0, 1.0), 303);
     let first = diagnose_run(&run, &Effects::NONE).expect("round 1");
     let named1 = first.lead.expect("round 1 names an effect");
     assert!(
-        ["differential_friction", "torque_sensor_offset"].contains(&named1),
+        ["differential_friction", "sensor_offset.c_kistler_l"].contains(&named1),
         "round 1: {}",
         first.verdict
     );
@@ -102,7 +102,7 @@ fn two_hidden_effects_are_found_in_two_rounds() {
     let named2 = second.lead.expect("round 2 names an effect");
     assert_ne!(named1, named2, "round 2: {}", second.verdict);
     assert!(
-        ["differential_friction", "torque_sensor_offset"].contains(&named2),
+        ["differential_friction", "sensor_offset.c_kistler_l"].contains(&named2),
         "round 2: {}",
         second.verdict
     );

@@ -24,7 +24,7 @@ fn lines(p: &Path) -> Vec<String> {
 fn every_compare_appends_one_record_and_history_lists_them_in_order() {
     let d = tempfile::tempdir().unwrap();
     let p = d.path();
-    std::fs::write(p.join("fx.toml"), "[torque_sensor_offset]\nleft_nm = 2.0\n").unwrap();
+    std::fs::write(p.join("fx.toml"), "[sensor_offset]\nc_kistler_l = 2.0\n").unwrap();
     ok(&simrod(
         p,
         &[
@@ -63,7 +63,7 @@ fn every_compare_appends_one_record_and_history_lists_them_in_order() {
         assert!(kl["rmse"].is_f64() && kl["nrmse"].is_f64());
     }
     let second: Value = serde_json::from_str(&recs[1]).unwrap();
-    assert!(second["effects"]["toml"].as_str().unwrap().contains("[torque_sensor_offset]"));
+    assert!(second["effects"]["toml"].as_str().unwrap().contains("[sensor_offset]"));
     assert_eq!(second["effects"]["file"]["path"], "fx.toml");
 
     // The report of iteration 2 draws iteration 1's twin as "before".
@@ -97,7 +97,7 @@ fn every_compare_appends_one_record_and_history_lists_them_in_order() {
     let summaries: Vec<&str> = its.iter().map(|e| e["effects"]["summary"].as_str().unwrap()).collect();
     assert_eq!(summaries.len(), 3);
     assert_eq!(summaries[0], "none");
-    assert!(summaries[1].starts_with("torque_sensor_offset(left_nm=2") && summaries[2] == summaries[1]);
+    assert!(summaries[1].starts_with("sensor_offset(c_kistler_l=2") && summaries[2] == summaries[1]);
     let kl = |e: &Value| {
         e["channels"].as_array().unwrap().iter().find(|c| c["name"] == "C_Kistler_L").unwrap()["rmse"]
             .as_f64()
@@ -110,7 +110,7 @@ fn every_compare_appends_one_record_and_history_lists_them_in_order() {
     let table = ok(&simrod(p, &["history", "m.csv", "--plot", "h.svg"]));
     let rows: Vec<&str> = table.lines().filter(|l| l.trim_start().starts_with(char::is_numeric)).collect();
     assert_eq!(rows.len(), 4, "{table}"); // three iterations and the 1→3 change
-    assert!(rows[0].trim_end().ends_with("none") && rows[1].contains("torque_sensor_offset"), "{table}");
+    assert!(rows[0].trim_end().ends_with("none") && rows[1].contains("sensor_offset"), "{table}");
     assert!(rows[3].starts_with("1→3") && rows[3].contains("-100 %"), "{table}");
     let svg = std::fs::read_to_string(p.join("h.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains(">C_Kistler_L<"));

@@ -61,7 +61,7 @@ fn noise_only_runs_raise_no_alarm() {
 #[test]
 fn compare_and_diagnose_see_the_same_twin() {
     let d = tempfile::tempdir().unwrap();
-    std::fs::write(d.path().join("fx.toml"), "[torque_sensor_offset]\nleft_nm = 1.5\n").unwrap();
+    std::fs::write(d.path().join("fx.toml"), "[sensor_offset]\nc_kistler_l = 1.5\n").unwrap();
     std::fs::write(d.path().join("now.toml"), "[regen_efficiency]\nextra_loss = 0.05\n").unwrap();
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../model-core/data");
     let o = simrod(

@@ -228,7 +228,7 @@ fn offset_on_one_channel_is_reported_on_that_channel_only() {
         *v += 2.0;
     }
     let mut fx = Effects::NONE;
-    fx.torque_sensor_offset = [2.0, 0.0];
+    fx.sensor_offset[2] = 2.0;
     let effect = bench_run(short_profile(), fx);
     for meas in [added, effect] {
         let r = compare(&meas, &exact()).unwrap();

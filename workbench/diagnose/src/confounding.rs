@@ -106,7 +106,7 @@ fn separating_profile(
 /// A member at its fitted values (its linear estimate if not refitted, a step if absent).
 fn member_effects(o: &Options, specs: &[ParamSpec], l: &Leaders, effect: &str) -> Effects {
     let c = l.cands.iter().find(|c| c.effect == effect);
-    let sp: Vec<&ParamSpec> = specs.iter().filter(|s| s.effect == effect).collect();
+    let sp: Vec<&ParamSpec> = specs.iter().filter(|s| s.cause == effect).collect();
     let vals: Vec<f64> = match (c, l.fits.iter().find(|(ci, _)| l.cands[*ci].effect == effect)) {
         (_, Some((_, f))) => f.values.clone(),
         (Some(c), None) => c.params.iter().map(|p| p.value).collect(),

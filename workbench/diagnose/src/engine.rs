@@ -28,7 +28,7 @@ use super::refit::{confirm, refit, Fit};
 use super::selection::{greedy, refit_list, score_effects};
 use super::sensitivities::{sensitivities, Sensitivities};
 use super::uncertainty::parameter_std;
-use super::verdict::{conclude, rank, Evidence};
+use super::verdict::{conclude, rank, structure_in, Evidence};
 
 /// Something that simulates the measured channels for given effects.
 pub trait Twin: Sync {
@@ -185,9 +185,24 @@ pub struct Candidate {
     pub channels: Vec<ChannelChange>,
     /// Per-region errors (when regions were given).
     pub regions: Vec<RegionChange>,
+    /// The channels it moves (each at least [`MOVES_SHARE`] of its weighted
+    /// sensitivity); one alone: a sensor cause, several: a physical one.
+    pub moves: Vec<&'static str>,
+    /// After its refit, whether structure is left in some channel's residual (`None`:
+    /// not refitted).
+    pub leaves_structure: Option<bool>,
 }
 
+/// Share of a candidate's weighted sensitivity a channel must carry to count as moved.
+pub const MOVES_SHARE: f64 = 0.05;
+
 impl Candidate {
+    /// A sensor cause: it moves one channel alone (the measurement chain's effects;
+    /// a physical effect moves several channels consistently).
+    pub fn is_sensor(&self) -> bool {
+        self.moves.len() == 1
+    }
+
     /// Confirmed reduction if refitted, else predicted.
     pub fn reduction(&self) -> f64 {
         self.confirmed_reduction.unwrap_or(self.predicted_reduction)
@@ -298,6 +313,13 @@ fn stages(
         || confirm_leaders(twin, &p, &s, o, &leaders, &mut cands),
         || joint_fit(twin, &p, &s, o, &selected),
     );
+    for (ci, f) in &fits {
+        if let Some(c) = cands.get_mut(*ci) {
+            let st =
+                structure_in(&p, twin.channels(), &twin.resolution(), twin.dt_s() * p.stride as f64, &f.sim);
+            c.leaves_structure = Some(st.is_some());
+        }
+    }
     let ranking = rank(&cands);
     let group = Leaders { cands: &cands, lin: &lin, fits: &fits, ranking: &ranking };
     let confounded = confounded_groups(&group, &s, o, &p.weights, probe);

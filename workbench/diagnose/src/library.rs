@@ -4,7 +4,7 @@
 //! effect's declaration in `model_core::effects` (its `Fit`), so there is no table here
 //! to keep in step with the model.
 
-use model_core::effects::{Effects, EFFECTS};
+use model_core::effects::{Cause, Effects, EFFECTS};
 use model_core::Params;
 
 /// One fittable parameter.
@@ -14,6 +14,9 @@ pub struct ParamSpec {
     pub effect: &'static str,
     /// Parameter name, e.g. `coulomb_nm`.
     pub param: &'static str,
+    /// The candidate cause it belongs to: the effect id, or `effect.param` where each
+    /// parameter is a cause of its own (the measurement chain's, one channel each).
+    pub cause: &'static str,
     /// Value that leaves the model as it is.
     pub neutral: f64,
     /// Finite-difference step (also the scale used to condition the fit).
@@ -53,6 +56,7 @@ pub fn library(p: &Params) -> Vec<ParamSpec> {
             out.push(ParamSpec {
                 effect: e.id,
                 param: d.name,
+                cause: if e.cause == Cause::PerParameter { d.path } else { e.id },
                 neutral,
                 delta: fit.delta(neutral),
                 lower: fit.lower,
@@ -62,6 +66,13 @@ pub fn library(p: &Params) -> Vec<ParamSpec> {
         }
     }
     out
+}
+
+/// The cause that parameter `param` of effect `effect` belongs to ([`ParamSpec::cause`]).
+pub fn cause_of(effect: &str, param: &str) -> Option<&'static str> {
+    let e = model_core::effects::effect(effect)?;
+    let d = e.param(param)?;
+    Some(if e.cause == Cause::PerParameter { d.path } else { e.id })
 }
 
 /// `base` with each `(spec, value)` applied.
@@ -101,7 +112,7 @@ mod tests {
         );
         let d = spec("controller_delay", "delay_s").unwrap();
         assert_eq!((d.neutral, d.delta, d.lower, d.upper, d.quantum(1e-3)), (0.0, 0.02, 0.0, 0.25, 1e-3));
-        let g = spec("speed_sensor_gain", "siemens").unwrap();
+        let g = spec("sensor_gain", "siemensenc").unwrap();
         assert_eq!(
             (g.neutral, g.delta, g.lower, g.upper, g.unit, g.quantum(1e-3)),
             (1.0, 0.01, 0.5, 2.0, "-", 0.0)
@@ -115,7 +126,14 @@ mod tests {
             v
         });
         assert_eq!(order, LIBRARY);
-        assert_eq!(lib.len(), 30);
+        // 18 physical parameters, and the four measurement-chain effects on each measured
+        // channel, each channel's a cause of its own.
+        let chain = 4 * model_core::MEASURED.len();
+        assert_eq!(lib.len(), 18 + chain);
+        let per_param = lib.iter().filter(|s| s.cause != s.effect).count();
+        assert_eq!(per_param, chain);
+        assert_eq!(cause_of("sensor_lag", "c_kistler_l"), Some("sensor_lag.c_kistler_l"));
+        assert_eq!(cause_of("differential_friction", "coulomb_nm"), Some("differential_friction"));
     }
 
     #[test]

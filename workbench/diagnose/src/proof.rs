@@ -5,6 +5,7 @@
 use model_core::{Builtin, Effects, Maps, Params, Profile, SpeedTarget};
 
 use super::engine::{diagnose, Diagnosis, Options, Twin, VerdictKind};
+use super::library::cause_of;
 use super::twin::{fitted_channels, BuiltinProbe, RecordedTwin};
 use simrod_twin::{InputSource, MeasuredTwin, ModelOptions};
 use simrod_vbench::bench::{BenchRun, PlantKind};
@@ -127,15 +128,18 @@ fn rms_diff(a: &[f64], b: &[f32]) -> f64 {
 /// Judge a diagnosis of a run with `truth` hidden (on top of `base`).
 pub fn judge(run: &Run, base: &Effects, truth: &Effects, truth_id: &str, d: &Diagnosis) -> Judgement {
     let hidden_params: Vec<&str> = truth_params(truth, truth_id);
+    // The candidate that carries the truth: the effect, or its hidden parameter's own
+    // cause (one channel's sensor).
+    let cause = hidden_params.first().and_then(|p| cause_of(truth_id, p)).unwrap_or(truth_id);
     let mut z = Vec::new();
     // The named effect is the truth, or heads a confounded group that contains the truth.
     let in_group = d
         .confounded
         .first()
-        .is_some_and(|g| g.effects.contains(&truth_id) && g.effects.first().copied() == d.lead);
-    let found = d.kind == VerdictKind::Missing && (d.lead == Some(truth_id) || in_group);
+        .is_some_and(|g| g.effects.contains(&cause) && g.effects.first().copied() == d.lead);
+    let found = d.kind == VerdictKind::Missing && (d.lead == Some(cause) || in_group);
     let mut detail = format!("{} | ", d.verdict);
-    let params_within = match d.ranking.iter().find(|c| c.effect == truth_id) {
+    let params_within = match d.ranking.iter().find(|c| c.effect == cause) {
         Some(c) => c.params.iter().all(|fp| {
             let t = f64::from(truth.get(truth_id, fp.name).ok().flatten().unwrap_or(fp.start as f32));
             let hidden = hidden_params.contains(&fp.name);

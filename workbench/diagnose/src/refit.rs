@@ -218,11 +218,14 @@ fn damped_step(pb: &Problem, g: &[f64], b: &[f64], lambda: &mut f64, st: &mut St
     Some(false)
 }
 
-/// Fine scan around a one-parameter optimum (±25 %, or ±4 steps for small values): moves
-/// to any better point and keeps the scan for a profile interval.
+/// Fine scan around a one-parameter optimum (±25 % of its distance from the neutral
+/// value, at least ± one sensitivity step): moves to any better point and keeps the scan
+/// for a profile interval. Measured from the neutral value, not from 0: a gain of 1.02
+/// scanned ±25 % of 1.02 had a grid of 0.02, as wide as the effect, and an interval no
+/// narrower than the grid.
 fn profile_scan(pb: &Problem, s0: &ParamSpec, fit: &mut Fit) {
     let v0 = fit.values[0];
-    let half = (0.25 * v0.abs()).max(4.0 * s0.delta * 0.25);
+    let half = (0.25 * (v0 - s0.neutral).abs()).max(s0.delta);
     let (lo, hi) = ((v0 - half).max(s0.lower), (v0 + half).min(s0.upper));
     let grid: Vec<Vec<f64>> = (0..=24).map(|i| vec![lo + (hi - lo) * f64::from(i) / 24.0]).collect();
     let mut prof = vec![(v0, fit.energy)];
@@ -303,6 +306,7 @@ mod tests {
         ParamSpec {
             effect: "differential_friction",
             param,
+            cause: "differential_friction",
             neutral: 0.0,
             delta: 0.01,
             lower: 0.0,
@@ -398,6 +402,8 @@ mod tests {
             significant: false,
             channels: Vec::new(),
             regions: Vec::new(),
+            moves: Vec::new(),
+            leaves_structure: None,
         };
         for (sd, significant) in [(f64::INFINITY, false), (f64::NAN, false), (0.1, true), (3.0, false)] {
             confirm(&mut cand, &fit, &[sd], &[&sa], &p);

@@ -5,7 +5,7 @@
 
 use model_core::Channel;
 
-use super::engine::{Candidate, ChannelChange, FittedParam, Options};
+use super::engine::{Candidate, ChannelChange, FittedParam, Options, MOVES_SHARE};
 use super::linalg::{quad, solve_spd, sub_matrix};
 use super::preparation::{region_errors, rmse, Prepared};
 use super::sensitivities::Sensitivities;
@@ -77,10 +77,25 @@ pub(super) fn score_effects(
                 regions: region_errors(p, &p.regions, |c, k| {
                     ix.iter().zip(&th).map(|(&i, t)| s.sens[i][c][k] * t).sum::<f64>()
                 }),
+                moves: moved_channels(s, channels, ix),
+                leaves_structure: None,
             };
             (cand, th)
         })
         .unzip()
+}
+
+/// The channels that carry at least [`MOVES_SHARE`] of the parameters' weighted
+/// sensitivity (`J'WJ`'s diagonal per channel), in channel order.
+fn moved_channels(s: &Sensitivities, channels: &[Channel], ix: &[usize]) -> Vec<&'static str> {
+    let np = s.np();
+    let per: Vec<f64> =
+        s.gc.iter().map(|g| ix.iter().map(|&i| g.get(i * np + i).copied().unwrap_or(0.0)).sum()).collect();
+    let total: f64 = per.iter().sum();
+    if total.is_nan() || total <= 0.0 {
+        return Vec::new();
+    }
+    channels.iter().zip(&per).filter(|(_, e)| **e >= MOVES_SHARE * total).map(|(c, _)| c.name()).collect()
 }
 
 /// The linear fit's values, not yet with an uncertainty (that needs the refit).

@@ -26,7 +26,7 @@ pub(super) struct Sensitivities {
     pub gc: Vec<Vec<f64>>,
     /// `J'W r` per channel.
     pub bc: Vec<Vec<f64>>,
-    /// Parameter indices of each effect, in library order.
+    /// Parameter indices of each candidate cause, in library order.
     pub groups: Vec<(&'static str, Vec<usize>)>,
     /// `J'WJ` and `J'W r` of each held-out fold ([`Prepared::folds`]), all channels.
     pub gf: Vec<Vec<f64>>,
@@ -135,13 +135,14 @@ fn normal_equations_by(
     (g, b)
 }
 
-/// Parameter indices grouped by effect, in order of first appearance.
+/// Parameter indices grouped by cause ([`ParamSpec::cause`]), in order of first
+/// appearance.
 fn effect_groups(specs: &[ParamSpec]) -> Vec<(&'static str, Vec<usize>)> {
     let mut v: Vec<(&'static str, Vec<usize>)> = Vec::new();
     for (i, s) in specs.iter().enumerate() {
-        match v.iter_mut().find(|(e, _)| *e == s.effect) {
+        match v.iter_mut().find(|(e, _)| *e == s.cause) {
             Some((_, ix)) => ix.push(i),
-            None => v.push((s.effect, vec![i])),
+            None => v.push((s.cause, vec![i])),
         }
     }
     v

@@ -12,13 +12,19 @@ use super::refit::Fit;
 use super::sensitivities::Sensitivities;
 use simrod_compare::structure;
 
-/// Refitted and significant candidates first, by confirmed reduction; then the rest.
+/// Refitted and significant candidates first: those whose refit leaves no structure in
+/// any channel before those that leave some (an offset and a gain on one channel may
+/// remove about the same energy, but only the true one leaves nothing at standstill),
+/// then by confirmed reduction; then the rest.
 pub(super) fn rank(cands: &[Candidate]) -> Vec<Candidate> {
-    let key = |c: &Candidate| (c.confirmed_reduction.is_some() && c.significant, c.reduction());
+    let key = |c: &Candidate| {
+        let counted = c.confirmed_reduction.is_some() && c.significant;
+        (counted, counted && c.leaves_structure == Some(false), c.reduction())
+    };
     let mut ranking = cands.to_vec();
     ranking.sort_by(|a, b| {
         let (ka, kb) = (key(a), key(b));
-        kb.0.cmp(&ka.0).then(kb.1.total_cmp(&ka.1))
+        kb.0.cmp(&ka.0).then(kb.1.cmp(&ka.1)).then(kb.2.total_cmp(&ka.2))
     });
     ranking
 }
@@ -126,32 +132,7 @@ impl Evidence<'_> {
     /// The most significant window of structure left in `sim`'s residual over all
     /// channels (the test `compare` reports: [`structure`]), if any window is flagged.
     fn structure_left(&self, sim: &[Vec<f32>]) -> Option<Structure> {
-        let p = self.p;
-        let dt = self.dt_fit();
-        let per_channel: Vec<structure::ChannelWindows> = p
-            .meas
-            .iter()
-            .zip(sim)
-            .zip(&self.resolution)
-            .map(|((m, s), res)| {
-                let r: Vec<f64> = m.iter().zip(s).map(|(a, b)| f64::from(*b) - a).collect();
-                structure::windows(&r, dt, *res)
-            })
-            .collect();
-        let tested: usize = per_channel.iter().map(|c| c.windows.len()).sum();
-        let th = structure::threshold(tested);
-        let flagged: Vec<(usize, &structure::Window)> =
-            per_channel.iter().enumerate().flat_map(|(c, w)| w.flagged(th).map(move |x| (c, x))).collect();
-        let (c, w) = flagged.iter().min_by(|a, b| a.1.p.total_cmp(&b.1.p))?;
-        Some(Structure {
-            channel: self.channels[*c].name(),
-            unit: self.channels[*c].unit(),
-            window_s: (w.start as f64 * dt, (w.start + w.len) as f64 * dt),
-            mean: w.mean,
-            p: w.p,
-            flagged: flagged.len(),
-            tested,
-        })
+        structure_in(self.p, self.channels, &self.resolution, self.dt_fit(), sim)
     }
 
     /// Where the rest is, after the lead's refit (or the current model without one).
@@ -161,6 +142,41 @@ impl Evidence<'_> {
             None => self.locate_rest(&self.p.base_sim),
         }
     }
+}
+
+/// The most significant window of structure left in `sim`'s residual (fit samples `dt`
+/// [s] apart) over all channels, if the test `compare` reports ([`structure`]) flags any.
+pub(super) fn structure_in(
+    p: &Prepared,
+    channels: &[Channel],
+    resolution: &[f64],
+    dt: f64,
+    sim: &[Vec<f32>],
+) -> Option<Structure> {
+    let per_channel: Vec<structure::ChannelWindows> = p
+        .meas
+        .iter()
+        .zip(sim)
+        .zip(resolution)
+        .map(|((m, s), res)| {
+            let r: Vec<f64> = m.iter().zip(s).map(|(a, b)| f64::from(*b) - a).collect();
+            structure::windows(&r, dt, *res)
+        })
+        .collect();
+    let tested: usize = per_channel.iter().map(|c| c.windows.len()).sum();
+    let th = structure::threshold(tested);
+    let flagged: Vec<(usize, &structure::Window)> =
+        per_channel.iter().enumerate().flat_map(|(c, w)| w.flagged(th).map(move |x| (c, x))).collect();
+    let (c, w) = flagged.iter().min_by(|a, b| a.1.p.total_cmp(&b.1.p))?;
+    Some(Structure {
+        channel: channels[*c].name(),
+        unit: channels[*c].unit(),
+        window_s: (w.start as f64 * dt, (w.start + w.len) as f64 * dt),
+        mean: w.mean,
+        p: w.p,
+        flagged: flagged.len(),
+        tested,
+    })
 }
 
 /// Start and length (samples) of the window of at most `win` samples with the largest
@@ -195,9 +211,9 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
     let (kind, sentence, unexplained) = match lead {
         Some(l) if explains && ratio_after <= o.noise_like_ratio => {
             match lead_fit.and_then(|f| ev.structure_left(&f.sim)) {
-                None => (VerdictKind::Missing, missing(l, red_a, ev.confounded.first()), None),
+                None => (VerdictKind::Missing, missing(l, red_a, ev.confounded.first(), o.confounded_cosine), None),
                 Some(st) => {
-                    let text = format!("{}; {}", missing(l, red_a, ev.confounded.first()), st.left("it"));
+                    let text = format!("{}; {}", missing(l, red_a, ev.confounded.first(), o.confounded_cosine), st.left("it"));
                     (VerdictKind::Partial, text, Some(st.location()))
                 }
             }
@@ -254,7 +270,7 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     }
     let (red_a, after_a) = ev.on_affected(&set.fit);
     let ratio_after = set.fit.energy / p.e_noise;
-    let names = describe_set(set);
+    let names = describe_set(set, ev.cands);
     let explains = red_a >= o.explain_fraction && after_a <= o.noise_like_ratio;
     let left = ev.structure_left(&set.fit.sim);
     let (kind, sentence, unexplained) = if explains && ratio_after <= o.noise_like_ratio && left.is_none() {
@@ -291,8 +307,8 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     })
 }
 
-/// `A (p = v ± h unit, …) + B (…)`.
-fn describe_set(set: &SetFit) -> String {
+/// `A (p = v ± h unit, …) [kind] + B (…) [kind]`.
+fn describe_set(set: &SetFit, cands: &[Candidate]) -> String {
     set.effects
         .iter()
         .map(|e| {
@@ -300,17 +316,18 @@ fn describe_set(set: &SetFit) -> String {
                 .specs
                 .iter()
                 .zip(set.fit.values.iter().zip(&set.std))
-                .filter(|(sp, _)| sp.effect == *e)
+                .filter(|(sp, _)| sp.cause == *e)
                 .map(|(sp, (v, sd))| format!("{} = {:.4} ± {:.4} {}", sp.param, v, 1.96 * sd, sp.unit))
                 .collect();
-            format!("{e} ({})", params.join(", "))
+            let kind = cands.iter().find(|c| c.effect == *e).map(cause_kind).unwrap_or_default();
+            format!("{e} ({}) [{kind}]", params.join(", "))
         })
         .collect::<Vec<_>>()
         .join(" + ")
 }
 
 /// Structure found where the whole run's energy is noise-like.
-struct Structure {
+pub(super) struct Structure {
     channel: &'static str,
     unit: &'static str,
     window_s: (f64, f64),
@@ -352,12 +369,17 @@ fn local_structure(ratio: f64, st: &Structure) -> String {
     )
 }
 
-fn missing(l: &Candidate, red_a: f64, group: Option<&ConfoundedGroup>) -> String {
+/// "missing effect: …", with its confounded group and the run that separates them, if a
+/// built-in profile does (its cosine below `separates`).
+fn missing(l: &Candidate, red_a: f64, group: Option<&ConfoundedGroup>, separates: f64) -> String {
     let group = group.map(|g| {
-        let sep = g
-            .separating_profile
-            .as_ref()
-            .map(|(pr, cos)| format!("; run {pr} to separate them (cosine {cos:.2})"));
+        let sep = g.separating_profile.as_ref().map(|(pr, cos)| {
+            if *cos < separates {
+                format!("; run {pr} to separate them (cosine {cos:.2})")
+            } else {
+                format!("; no built-in profile separates them (the best, {pr}, has cosine {cos:.2})")
+            }
+        });
         format!(
             " — confounded with {} on this run (cosine {:.2}){}",
             g.effects[1..].join(", "),
@@ -399,7 +421,15 @@ fn describe(l: &Candidate) -> String {
         .iter()
         .map(|fp| format!("{} = {:.4} ± {:.4} {}", fp.name, fp.value, 1.96 * fp.std, fp.unit))
         .collect();
-    format!("{} ({})", l.effect, params.join(", "))
+    format!("{} ({}) [{}]", l.effect, params.join(", "), cause_kind(l))
+}
+
+/// "sensor: moves C_Kistler_L alone" or "physical: moves 5 channels (A, B, ...)".
+fn cause_kind(l: &Candidate) -> String {
+    match l.moves.as_slice() {
+        [one] => format!("sensor: moves {one} alone"),
+        many => format!("physical: moves {} channels ({})", many.len(), many.join(", ")),
+    }
 }
 
 fn place(loc: &Location) -> String {

@@ -173,7 +173,7 @@ mod tests {
             e.starts_with("fx.toml:4:2: unknown effect `warp_drive`; known effects: `differential_friction`"),
             "{e}"
         );
-        assert!(e.contains("`current_sensor_gain`"), "{e}");
+        assert!(e.contains("`sensor_gain`"), "{e}");
         let e = parse("[warp_drive]\n").unwrap_err();
         assert!(e.starts_with("fx.toml:1:2: unknown effect `warp_drive`"), "{e}");
 
@@ -276,12 +276,12 @@ mod tests {
 
         // Only the effect that differs is written.
         let mut fx = Effects::NONE;
-        fx.torque_sensor_offset = [-0.0, 1.5e-7];
+        (fx.sensor_offset[2], fx.sensor_offset[3]) = (-0.0, 1.5e-7);
         write_effects(&fx, &path).unwrap();
         let text = std::fs::read_to_string(&path).unwrap();
         assert_eq!(text.matches('[').count(), 1, "{text}");
         let back = load_effects(&path).unwrap();
-        assert_eq!(back.torque_sensor_offset[1].to_bits(), 1.5e-7f32.to_bits());
+        assert_eq!(back.sensor_offset[3].to_bits(), 1.5e-7f32.to_bits());
     }
 
     #[test]

@@ -16,6 +16,7 @@ mod electrics;
 pub mod plant;
 pub mod profile;
 pub mod reference;
+pub mod sampled;
 mod tables;
 
 pub use effects::{EffectDecl, ParamDecl, PlantEffects, PLANT_EFFECTS};

@@ -30,6 +30,7 @@ use model_core::{Channel, Effects, Maps, Params, ProfileSet, SpeedTarget, MEASUR
 use crate::effects::{KeyError, PlantEffects};
 use crate::electrics::{Electrics, ElectricsOut};
 use crate::profile::{SetPoints, TimeProfile};
+use crate::sampled::{first_order_lag, fractional_delay};
 use crate::tables::Tables;
 
 const RPM_PER_RAD_S: f64 = 30.0 / std::f64::consts::PI;
@@ -680,46 +681,40 @@ impl Plant {
         }
     }
 
-    /// Outputs at the current time, in the bench's channels, sensor effects applied.
+    /// Outputs at the current time, in the bench's channels, with each sensor's gain and
+    /// offset (`sensor_gain`, `sensor_offset`); the lag and delay of the chain act on the
+    /// series ([`Plant::run_logged`]).
     pub fn sample(&self) -> Sample {
         let s = &self.s;
-        let fx = &self.fx;
         let x = &self.x;
-        let f = f64::from;
         let flange = |o: usize| s.k_f * x[o + PHI_AF] + s.c_f * (x[o + W_A] - x[o + W_F]);
-        let (sg, cg) = (fx.speed_sensor_gain.map(f), fx.current_sensor_gain.map(f));
-        let (tg, to) = (fx.torque_sensor_gain.map(f), fx.torque_sensor_offset.map(f));
         let e = &self.out;
         // The set point held over the interval that ends now (left limit).
         let t_ns = self.t_ns();
         let seg = self.profile.segment_at(i128::from(t_ns) - 1);
         let throttle = self.profile.at(seg, t_ns as f64).throttle;
-        let i_dc = e.i_dc * cg[1];
-        let i_xlml = 0.5 * e.i_load[0] * cg[2];
-        let i_xlmr = 0.5 * e.i_load[1] * cg[3];
-        let i_dpu = (e.i_dc + e.i_load[0] + e.i_load[1]) * cg[0];
-        let values = CHANNELS.map(|c| match c {
+        let mut values = CHANNELS.map(|c| match c {
             Channel::Throttle => (throttle.abs() * s.volts_per_pct).clamp(0.0, 5.0),
-            Channel::SuTMotorEnc => self.motor_speed(x, self.free) * RPM_PER_RAD_S * sg[0],
-            Channel::CKistlerL => flange(0) * tg[0] + to[0],
-            Channel::CKistlerR => flange(SIDE) * tg[1] + to[1],
-            Channel::TKistlerL => x[W_F] * RPM_PER_RAD_S * sg[1],
-            Channel::TKistlerR => x[SIDE + W_F] * RPM_PER_RAD_S * sg[2],
-            Channel::SiemensEnc => x[SIDE + W_L] * RPM_PER_RAD_S * sg[3],
-            Channel::IXlml22 | Channel::IXlmlBu1 => i_xlml,
-            Channel::IXlmr23 => i_xlmr,
-            Channel::IDpu27 => i_dpu,
+            Channel::SuTMotorEnc => self.motor_speed(x, self.free) * RPM_PER_RAD_S,
+            Channel::CKistlerL => flange(0),
+            Channel::CKistlerR => flange(SIDE),
+            Channel::TKistlerL => x[W_F] * RPM_PER_RAD_S,
+            Channel::TKistlerR => x[SIDE + W_F] * RPM_PER_RAD_S,
+            Channel::SiemensEnc => x[SIDE + W_L] * RPM_PER_RAD_S,
+            Channel::IXlml22 | Channel::IXlmlBu1 => 0.5 * e.i_load[0],
+            Channel::IXlmr23 => 0.5 * e.i_load[1],
+            Channel::IDpu27 => e.i_dc + e.i_load[0] + e.i_load[1],
             Channel::VDcBusbars => e.v_b,
-            Channel::IDc => i_dc,
+            Channel::IDc => e.i_dc,
             Channel::VDc => e.v_dc,
-            // Derived as the thesis computes them from the measured channels (5.13).
-            Channel::PSutInv => e.v_dc * i_dc,
-            Channel::PLml => 2.0 * i_xlml * e.v_b,
-            Channel::PLmr => 2.0 * i_xlmr * e.v_b,
-            Channel::PDpu => e.v_b * i_dpu,
             Channel::SpeedCmd => self.cmd_rpm,
             _ => f64::NAN,
         });
+        let fx = &self.fx;
+        for (i, v) in values.iter_mut().take(MEASURED.len()).enumerate() {
+            *v = *v * f64::from(fx.sensor_gain[i]) + f64::from(fx.sensor_offset[i]);
+        }
+        derive(&mut values);
         Sample { t_us: self.t_us(), values }
     }
 
@@ -775,12 +770,55 @@ impl Plant {
             out.push(sample);
             sps.push(self.logged_setpoints(every_us));
         }
+        lag_and_delay(&mut out, &self.fx, every_us as f64 * 1e-6);
         Ok((out, sps))
     }
 
     /// [`Plant::run_logged`] without the set points.
     pub fn run(self, every_us: u64) -> Result<Vec<Sample>, SetupError> {
         self.run_logged(every_us).map(|(s, _)| s)
+    }
+}
+
+/// The derived channels from the measured ones, as the thesis computes them from the
+/// recorded channels (5.13).
+fn derive(values: &mut [f64; CHANNELS.len()]) {
+    let m = |c: Channel| CHANNELS.iter().position(|&k| k == c).map_or(f64::NAN, |i| values[i]);
+    let v_b = m(Channel::VDcBusbars);
+    let powers = [
+        (Channel::PSutInv, m(Channel::VDc) * m(Channel::IDc)),
+        (Channel::PLml, (m(Channel::IXlml22) + m(Channel::IXlmlBu1)) * v_b),
+        (Channel::PLmr, 2.0 * m(Channel::IXlmr23) * v_b),
+        (Channel::PDpu, v_b * m(Channel::IDpu27)),
+    ];
+    for (c, v) in powers {
+        if let Some(i) = CHANNELS.iter().position(|&k| k == c) {
+            values[i] = v;
+        }
+    }
+}
+
+/// The chain's lag and delay (`sensor_lag`, `sensor_delay`) on each measured channel's
+/// series sampled every `dt` [s], from rest at its first value, then the derived channels
+/// again.
+fn lag_and_delay(out: &mut [Sample], fx: &Effects, dt: f64) {
+    let mut changed = false;
+    for (i, (tau, d)) in fx.sensor_lag_s.iter().zip(fx.sensor_delay_s).enumerate() {
+        if *tau == 0.0 && d == 0.0 {
+            continue;
+        }
+        changed = true;
+        let mut x: Vec<f64> = out.iter().map(|s| s.values[i]).collect();
+        first_order_lag(&mut x, dt, f64::from(*tau));
+        if d > 0.0 {
+            x = fractional_delay(&x, f64::from(d) / dt);
+        }
+        for (s, v) in out.iter_mut().zip(x) {
+            s.values[i] = v;
+        }
+    }
+    if changed {
+        out.iter_mut().for_each(|s| derive(&mut s.values));
     }
 }
 

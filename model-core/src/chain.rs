@@ -1,0 +1,249 @@
+//! The measurement chain of every measured channel: what the sensor, its amplifier and
+//! the acquisition do to the physical signal before it is written to the bench's file.
+//! Four effects, each with one parameter per channel of [`MEASURED`] (declared in
+//! [`crate::effects`]): `sensor_gain` and `sensor_offset` (the sensor's calibration),
+//! `sensor_lag` (a first-order amplifier or anti-alias filter) and `sensor_delay` (the
+//! channel sampled late: an acquisition unit without a shared clock).
+//!
+//! Order, as on the bench: `gain x + offset` at the sensor, the lag on the amplifier's
+//! output, then the delay of the acquisition. The derived channels (powers, sums) are
+//! computed from the chain's output, as the thesis computes them from the recorded
+//! channels (5.13).
+//!
+//! Start: the run starts at rest, so before the first step the lag sits at, and the
+//! delay line is filled with, the channel's first value (not 0: a voltage starts at
+//! 24 V). Coefficients are computed once at construction in f64 with basic operations
+//! only (the exponential through [`crate::expm`]), so host and target agree bit for bit.
+
+use crate::expm::expm;
+use crate::outputs::MEASURED;
+
+/// Number of measured channels: one chain each.
+pub const N_MEASURED: usize = MEASURED.len();
+
+/// Delay-line samples shared by all channels (512 B): a channel delayed by `d` steps
+/// takes `d` of them, in [`MEASURED`] order. 128 ms at 1 ms in all, beyond the 1-100 ms
+/// skews of unsynchronised acquisition units; a channel beyond what is left is cut to it.
+pub const SENSOR_DELAY_CAPACITY: usize = 128;
+
+/// First-order lag `tau dy/dt = x - y`, exact for an input linear between samples
+/// (first-order hold): `y1 = a y0 + b x1 - c (x1 - x0)`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct Lag {
+    a: f32,
+    b: f32,
+    c: f32,
+}
+
+impl Lag {
+    /// The coefficients for time constant `tau` [s] at step `dt` [s]; `None` for 0 (off).
+    /// Not inlined: one copy of the exponential for all channels (flash).
+    #[inline(never)]
+    fn new(tau: f32, dt: f64) -> Option<Self> {
+        if tau <= 0.0 {
+            return None;
+        }
+        let r = dt / f64::from(tau);
+        let a = expm(&[[-r]])[0][0];
+        let b = 1.0 - a;
+        // (1 - e^-r) / r - e^-r, by its series where the difference cancels.
+        let c = if r < 1e-3 { r * (0.5 - r * (1.0 / 3.0 - r / 8.0)) } else { b / r - a };
+        Some(Self { a: a as f32, b: b as f32, c: c as f32 })
+    }
+}
+
+/// One channel's delay: its slots of the shared line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+struct Slots {
+    start: u8,
+    len: u8,
+}
+
+/// The chain's coefficients, fixed at construction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Chain {
+    gain: [f32; N_MEASURED],
+    offset: [f32; N_MEASURED],
+    lag: [Option<Lag>; N_MEASURED],
+    delay: [Slots; N_MEASURED],
+    /// Some channel has a lag or a delay (else the step is a calibration only).
+    dynamic: bool,
+}
+
+/// What the chain remembers between steps.
+#[derive(Debug, Clone)]
+pub struct ChainState {
+    started: bool,
+    /// Lag outputs and inputs of the last step.
+    y: [f32; N_MEASURED],
+    x: [f32; N_MEASURED],
+    /// Write positions, relative to each channel's first slot.
+    pos: [u8; N_MEASURED],
+    line: [f32; SENSOR_DELAY_CAPACITY],
+}
+
+impl Default for ChainState {
+    fn default() -> Self {
+        Self {
+            started: false,
+            y: [0.0; N_MEASURED],
+            x: [0.0; N_MEASURED],
+            pos: [0; N_MEASURED],
+            line: [0.0; SENSOR_DELAY_CAPACITY],
+        }
+    }
+}
+
+impl Chain {
+    /// From the effects' per-channel values (validated) at step `dt` [s].
+    pub fn new(
+        gain: [f32; N_MEASURED],
+        offset: [f32; N_MEASURED],
+        lag_s: [f32; N_MEASURED],
+        delay_s: [f32; N_MEASURED],
+        dt: f64,
+    ) -> Self {
+        let mut delay = [Slots::default(); N_MEASURED];
+        let mut used = 0usize;
+        for (slot, d) in delay.iter_mut().zip(delay_s) {
+            let steps = (f64::from(d) / dt + 0.5) as usize;
+            let len = steps.min(SENSOR_DELAY_CAPACITY - used);
+            *slot = Slots { start: used as u8, len: len as u8 };
+            used += len;
+        }
+        let lag = lag_s.map(|t| Lag::new(t, dt));
+        let dynamic = lag.iter().any(Option::is_some) || delay.iter().any(|s| s.len > 0);
+        Self { gain, offset, lag, delay, dynamic }
+    }
+
+    /// Each channel's delay in whole steps, as realised.
+    pub fn delay_steps(&self) -> [usize; N_MEASURED] {
+        self.delay.map(|s| usize::from(s.len))
+    }
+
+    /// The recorded values of one step from the physical ones, in [`MEASURED`] order.
+    #[inline]
+    pub fn apply(&self, s: &mut ChainState, raw: &[f32; N_MEASURED]) -> [f32; N_MEASURED] {
+        let mut out = [0.0; N_MEASURED];
+        for ((o, v), (g, k)) in out.iter_mut().zip(raw).zip(self.gain.iter().zip(&self.offset)) {
+            *o = v * g + k;
+        }
+        if self.dynamic {
+            self.lag_and_delay(s, &mut out);
+        }
+        out
+    }
+
+    /// The amplifiers' lags, then the acquisition's delays, in place.
+    fn lag_and_delay(&self, s: &mut ChainState, out: &mut [f32; N_MEASURED]) {
+        let first = !s.started;
+        s.started = true;
+        let lags = self.lag.iter().zip(s.y.iter_mut().zip(s.x.iter_mut()));
+        for (v, (lag, (y, x))) in out.iter_mut().zip(lags) {
+            if let Some(lag) = lag {
+                if first {
+                    (*y, *x) = (*v, *v);
+                }
+                *y = lag.a * *y + lag.b * *v - lag.c * (*v - *x);
+                *x = *v;
+                *v = *y;
+            }
+        }
+        for (v, (slots, pos)) in out.iter_mut().zip(self.delay.iter().zip(s.pos.iter_mut())) {
+            *v = delayed(&mut s.line, *slots, pos, *v, first);
+        }
+    }
+}
+
+/// Push `v` into the channel's slots, return the value `len` steps old; on the first
+/// step the slots are filled with `v` (the run starts at rest).
+#[inline]
+fn delayed(line: &mut [f32; SENSOR_DELAY_CAPACITY], slots: Slots, pos: &mut u8, v: f32, first: bool) -> f32 {
+    if slots.len == 0 {
+        return v;
+    }
+    let (start, len) = (usize::from(slots.start), usize::from(slots.len));
+    let Some(mine) = line.get_mut(start..start + len) else { return v };
+    if first {
+        mine.fill(v);
+    }
+    let p = usize::from(*pos);
+    let Some(slot) = mine.get_mut(p) else { return v };
+    let out = *slot;
+    *slot = v;
+    *pos = if p + 1 >= len { 0 } else { (p + 1) as u8 };
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const N: usize = N_MEASURED;
+
+    fn chain(lag: f32, delay: f32, ch: usize) -> Chain {
+        let mut lags = [0.0; N];
+        let mut delays = [0.0; N];
+        lags[ch] = lag;
+        delays[ch] = delay;
+        Chain::new([1.0; N], [0.0; N], lags, delays, 1e-3)
+    }
+
+    fn run(c: &Chain, ch: usize, xs: &[f32]) -> std::vec::Vec<f32> {
+        let mut s = ChainState::default();
+        xs.iter()
+            .map(|&x| {
+                let mut raw = [0.0; N];
+                raw[ch] = x;
+                c.apply(&mut s, &raw)[ch]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn neutral_chain_passes_every_value_through() {
+        let c = Chain::new([1.0; N], [0.0; N], [0.0; N], [0.0; N], 1e-3);
+        let mut s = ChainState::default();
+        let raw: [f32; N] = core::array::from_fn(|i| i as f32 * 1.5 - 3.0);
+        assert_eq!(c.apply(&mut s, &raw), raw);
+    }
+
+    #[test]
+    fn gain_and_offset_calibrate_each_channel() {
+        let mut g = [1.0; N];
+        let mut k = [0.0; N];
+        (g[2], k[2]) = (1.05, 1.5);
+        let c = Chain::new(g, k, [0.0; N], [0.0; N], 1e-3);
+        let out = c.apply(&mut ChainState::default(), &[10.0; N]);
+        assert_eq!(out[2], 10.0 * 1.05 + 1.5);
+        assert_eq!(out[3], 10.0);
+    }
+
+    #[test]
+    fn delay_shifts_by_whole_steps_from_the_first_value() {
+        let out = run(&chain(0.0, 0.003, 1), 1, &[5.0, 6.0, 7.0, 8.0, 9.0]);
+        assert_eq!(out, [5.0, 5.0, 5.0, 5.0, 6.0]);
+    }
+
+    #[test]
+    fn delays_share_the_line_and_are_cut_beyond_it() {
+        let mut d = [0.0; N];
+        (d[0], d[1], d[2]) = (0.1, 0.02, 0.1);
+        let c = Chain::new([1.0; N], [0.0; N], [0.0; N], d, 1e-3);
+        assert_eq!(c.delay_steps()[..3], [100, 20, SENSOR_DELAY_CAPACITY - 120]);
+    }
+
+    /// Against the lag's continuous solution for a ramp from rest at 0:
+    /// y(t) = t - tau (1 - e^(-t/tau)), which the first-order hold reproduces exactly.
+    #[test]
+    fn lag_follows_the_exact_ramp_response() {
+        let tau = 0.04;
+        let xs: std::vec::Vec<f32> = (0..200).map(|k| k as f32 * 1e-3).collect();
+        let out = run(&chain(tau as f32, 0.0, 4), 4, &xs);
+        for (k, y) in out.iter().enumerate() {
+            let t = k as f64 * 1e-3;
+            let want = t - tau * (1.0 - (-t / tau).exp());
+            assert!((f64::from(*y) - want).abs() < 2e-6, "k {k}: {y} vs {want}");
+        }
+    }
+}
