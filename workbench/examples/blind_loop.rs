@@ -1,0 +1,446 @@
+//! Issue 12's proof sweep: the user's loop run blind on realistic cases, judged against
+//! the truth the loop never sees.
+//!
+//! ```text
+//! cargo build --release -p workbench --bin simrod
+//! cargo run --release -p workbench --example blind_loop -- [--cases N] [--first SEED] [--check]
+//! ```
+//!
+//! Each case is `simrod bench --scenario random` (the physics plant, not the twin; 0–3
+//! hidden effects from the twin's library, the plant's bench-only physics and the
+//! acquisition's faults; maps perturbed in half the cases; the bench's noise). Two cases
+//! in five are campaigns of 2–5 runs: the same hidden bench on other profiles and scales.
+//! The loop is the user's, through the `simrod` binary: `diagnose RUN... --write-effects`,
+//! then `diagnose --effects <what it wrote>`, up to five rounds, stopping at "nothing
+//! missing", "unexplained" or when nothing new is proposed. Then, per run and channel:
+//!
+//! - the **floor**: the error of the true plant model on the file (the noise-free run of
+//!   the same bench, `--noise none`, against the file);
+//! - **moved** channels: those the thesis twin misses by more than 1.2x the floor;
+//! - **honest**: every moved channel ends within 1.2x its floor and no other channel is
+//!   made worse than 1.15x; or the loop ends "unexplained"/"partial" located on a moved
+//!   channel, having made no channel worse than 1.15x;
+//! - **miss**: "nothing missing" while a moved channel is above 1.2x its floor;
+//! - **false claim**: a library effect added that is not in the truth, with a moved
+//!   channel left above 1.2x its floor;
+//! - **found**: a hidden library effect that moves a channel is in the final file; its
+//!   95 % interval, in the round that first named it, holds the truth (coverage).
+//!
+//! Seeds: the proof uses seeds from 1,000,000 on, never used while developing (tuning
+//! used 500,000 on); `--first` moves them. `--check` exits 1 when a target is missed
+//! (honest >= 95 %, false claims <= 2 %, found >= 95 % single / 98 % campaigns, nothing
+//! hidden claims nothing >= 98 %, coverage 90-99 %).
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+use serde_json::Value;
+use workbench::measure::{load, Measurement};
+use workbench::stats::Rng;
+use workbench::vbench::bench_effects::format_bench_effects;
+use workbench::vbench::scenario::{Pick, Scenario};
+
+mod common;
+use common::sibling;
+
+/// Most rounds of the loop.
+const ROUNDS: usize = 5;
+/// A moved channel must end within this factor of its floor.
+const FLOOR_FACTOR: f64 = 1.2;
+/// No channel may end worse than this factor of its starting error.
+const WORSE_FACTOR: f64 = 1.15;
+
+/// The acquisition faults and the twin effect that models each.
+const DAQ_TWIN: [(&str, &str); 3] =
+    [("amplifier_lag", "sensor_lag"), ("daq_skew", "sensor_delay"), ("offset_drift", "sensor_offset")];
+
+struct Case {
+    seed: u64,
+    scenario: Scenario,
+    runs: Vec<PathBuf>,
+    exact: Vec<PathBuf>,
+}
+
+/// What happened to one case.
+#[derive(Default)]
+struct Outcome {
+    class: String,
+    campaign: bool,
+    nothing_hidden: bool,
+    honest: bool,
+    miss: bool,
+    false_claim: Vec<String>,
+    /// Hidden library effects that move a channel: (id, found).
+    library: Vec<(String, bool)>,
+    /// Coverage of the truth by the 95 % interval: (inside, total).
+    coverage: (usize, usize),
+    rounds: usize,
+    last: String,
+    seconds: f64,
+}
+
+fn arg(name: &str) -> Option<String> {
+    let a: Vec<String> = std::env::args().collect();
+    a.iter().position(|x| x == name).and_then(|i| a.get(i + 1).cloned())
+}
+
+fn simrod(dir: &Path, args: &[String]) -> Result<String, String> {
+    let out =
+        Command::new(sibling("simrod")).current_dir(dir).args(args).output().map_err(|e| e.to_string())?;
+    if out.status.success() {
+        Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+    } else {
+        Err(format!("simrod {}: {}", args.join(" "), String::from_utf8_lossy(&out.stderr).trim()))
+    }
+}
+
+fn strings(v: &[&str]) -> Vec<String> {
+    v.iter().map(|s| s.to_string()).collect()
+}
+
+/// The runs of case `seed`: the scenario's own, then for a campaign 1–4 more of the
+/// same bench on other profiles and scales; each with its noise-free twin.
+fn make_case(dir: &Path, seed: u64) -> Result<Case, String> {
+    let scenario = Scenario::draw(seed);
+    let mut r = Rng::new(seed, 7);
+    let extra = if r.uniform() < 0.4 { 1 + r.index(4) } else { 0 };
+    let fx = format_bench_effects(&scenario.effects())?;
+    std::fs::write(dir.join("hidden.toml"), fx).map_err(|e| e.to_string())?;
+    let (mut runs, mut exact) = (Vec::new(), Vec::new());
+    for k in 0..=extra {
+        let (run, ex) = (format!("run{k}.csv"), format!("exact{k}.csv"));
+        let mut a = if k == 0 {
+            strings(&["bench", "--scenario", "random", "--seed", &seed.to_string()])
+        } else {
+            let other = Scenario::draw(seed.wrapping_mul(7919).wrapping_add(k as u64));
+            let mut a = strings(&["bench", "--profile", other.profile.name(), "--effects", "hidden.toml"]);
+            a.extend(strings(&["--throttle-scale", &other.throttle_scale.to_string()]));
+            a.extend(strings(&["--load-scale", &other.load_scale.to_string()]));
+            if let Some(p) = scenario.perturb_maps {
+                a.extend(strings(&["--perturb-maps", &p.to_string()]));
+            }
+            a.extend(strings(&["--seed", &(seed + k as u64).to_string()]));
+            a
+        };
+        a.push("-q".into());
+        let mut clean = a.clone();
+        a.extend(strings(&["--out", &run]));
+        clean.extend(strings(&["--noise", "none", "--out", &ex]));
+        if k == 0 {
+            clean.extend(strings(&["--truth", "exact0.truth.toml"]));
+        }
+        simrod(dir, &a)?;
+        simrod(dir, &clean)?;
+        runs.push(dir.join(run));
+        exact.push(dir.join(ex));
+    }
+    Ok(Case { seed, scenario, runs, exact })
+}
+
+/// Per run, per channel name: the twin's RMSE with `effects` (`None`: the thesis twin).
+fn twin_errors(dir: &Path, c: &Case, effects: Option<&str>) -> Result<Vec<Vec<(String, f64)>>, String> {
+    c.runs
+        .iter()
+        .map(|run| {
+            let mut a = strings(&["compare", &run.display().to_string(), "--json", "--no-history"]);
+            if let Some(fx) = effects {
+                a.extend(strings(&["--effects", fx]));
+            }
+            let j: Value = serde_json::from_str(&simrod(dir, &a)?).map_err(|e| e.to_string())?;
+            let chans = j["channels"].as_object().ok_or("compare JSON has no channels")?;
+            Ok(chans.iter().filter_map(|(k, v)| Some((k.clone(), v["rmse"].as_f64()?))).collect())
+        })
+        .collect()
+}
+
+/// Per run, the RMS difference of each measured channel between the file and the
+/// noise-free run: the error of the true plant model.
+fn floors(c: &Case, names: &[Vec<(String, f64)>]) -> Result<Vec<Vec<f64>>, String> {
+    c.runs
+        .iter()
+        .zip(&c.exact)
+        .zip(names)
+        .map(|((run, ex), chans)| {
+            let (m, e): (Measurement, Measurement) =
+                (load(run, None).map_err(|e| e.to_string())?, load(ex, None).map_err(|e| e.to_string())?);
+            Ok(chans
+                .iter()
+                .map(|(name, _)| match (m.signal(name), e.signal(name)) {
+                    (Some(a), Some(b)) => {
+                        let n = a.values.len().min(b.values.len()).max(1);
+                        let s: f64 = a.values.iter().zip(&b.values).map(|(x, y)| (x - y) * (x - y)).sum();
+                        (s / n as f64).sqrt()
+                    }
+                    _ => f64::NAN,
+                })
+                .collect())
+        })
+        .collect()
+}
+
+/// The loop: diagnose, add what it wrote, again. Returns the rounds' JSON and the last
+/// effect file written.
+fn blind_loop(dir: &Path, c: &Case) -> Result<(Vec<Value>, Option<String>), String> {
+    let runs: Vec<String> = c.runs.iter().map(|p| p.display().to_string()).collect();
+    let (mut rounds, mut current): (Vec<Value>, Option<String>) = (Vec::new(), None);
+    for k in 1..=ROUNDS {
+        let out = format!("r{k}.toml");
+        let mut a = strings(&["diagnose"]);
+        a.extend(runs.iter().cloned());
+        a.extend(strings(&["--json", "--write-effects", &out]));
+        if let Some(fx) = &current {
+            a.extend(strings(&["--effects", fx]));
+        }
+        let j: Value = serde_json::from_str(&simrod(dir, &a)?).map_err(|e| e.to_string())?;
+        let kind = j["kind"].as_str().unwrap_or("").to_owned();
+        let wrote = j.get("effects_written").is_some();
+        rounds.push(j);
+        if !wrote || kind == "nothing_missing" || kind == "unexplained" {
+            break;
+        }
+        let same = current.as_ref().is_some_and(|prev| {
+            std::fs::read_to_string(dir.join(prev)).ok() == std::fs::read_to_string(dir.join(&out)).ok()
+        });
+        if same {
+            break;
+        }
+        current = Some(out);
+    }
+    Ok((rounds, current))
+}
+
+/// Effect ids in an effect file.
+fn ids_in(dir: &Path, file: Option<&str>) -> BTreeSet<String> {
+    let text = file.and_then(|f| std::fs::read_to_string(dir.join(f)).ok()).unwrap_or_default();
+    text.lines()
+        .filter_map(|l| l.trim().strip_prefix('[').and_then(|l| l.strip_suffix(']')))
+        .map(str::to_owned)
+        .collect()
+}
+
+/// The twin effect ids the truth justifies: its library effects, and the chain effect
+/// that models each acquisition fault.
+fn truth_ids(s: &Scenario) -> BTreeSet<String> {
+    s.picks
+        .iter()
+        .filter_map(|p| match p {
+            Pick::Library { id, .. } => Some(id.to_string()),
+            Pick::Daq { id, .. } => DAQ_TWIN.iter().find(|(d, _)| d == id).map(|(_, t)| t.to_string()),
+            Pick::Plant { .. } => None,
+        })
+        .collect()
+}
+
+fn class_of(c: &Case) -> String {
+    let s = &c.scenario;
+    let kinds: BTreeSet<&str> = s
+        .picks
+        .iter()
+        .map(|p| match p {
+            Pick::Library { .. } => "lib",
+            Pick::Plant { .. } => "plant",
+            Pick::Daq { .. } => "daq",
+        })
+        .collect();
+    let kinds: Vec<&str> = kinds.into_iter().collect();
+    format!(
+        "{} eff{}{}",
+        s.picks.len(),
+        if kinds.is_empty() { String::new() } else { format!(" {}", kinds.join("+")) },
+        if s.perturb_maps.is_some() { " maps" } else { "" }
+    )
+}
+
+/// Judge case `c` after its loop.
+fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
+    let t0 = Instant::now();
+    let before = twin_errors(dir, c, None)?;
+    let floor = floors(c, &before)?;
+    let (rounds, last) = blind_loop(dir, c)?;
+    let after = match &last {
+        Some(f) => twin_errors(dir, c, Some(f))?,
+        None => before.clone(),
+    };
+    let last_j = rounds.last().cloned().unwrap_or(Value::Null);
+    let kind = last_j["kind"].as_str().unwrap_or("").to_owned();
+    let located = last_j["unexplained"]["channel"].as_str().map(str::to_owned);
+    let (mut moved_ok, mut worse, mut any_moved_high) = (true, false, false);
+    let mut moved = BTreeSet::new();
+    for ((b, a), f) in before.iter().zip(&after).zip(&floor) {
+        for (((name, e0), (_, e1)), fl) in b.iter().zip(a).zip(f) {
+            let is_moved = *e0 > FLOOR_FACTOR * fl;
+            if is_moved {
+                moved.insert(name.clone());
+                if *e1 > FLOOR_FACTOR * fl {
+                    moved_ok = false;
+                    any_moved_high = true;
+                }
+            } else if *e1 > WORSE_FACTOR * e0.max(*fl) {
+                worse = true;
+            }
+            if is_moved && *e1 > WORSE_FACTOR * e0 {
+                worse = true;
+            }
+        }
+    }
+    let located_on_moved = located.as_ref().is_some_and(|ch| moved.contains(ch));
+    let honest = (moved_ok && !worse)
+        || (matches!(kind.as_str(), "unexplained" | "partial") && located_on_moved && !worse);
+    let truth = truth_ids(&c.scenario);
+    let claimed = ids_in(dir, last.as_deref());
+    let false_claim: Vec<String> =
+        if any_moved_high { claimed.difference(&truth).cloned().collect() } else { Vec::new() };
+    let mut coverage = (0, 0);
+    let library: Vec<(String, bool)> = c
+        .scenario
+        .picks
+        .iter()
+        .filter_map(|p| match p {
+            Pick::Library { id, param, value } => Some((id, param, value)),
+            _ => None,
+        })
+        .map(|(id, param, value)| {
+            let found = claimed.contains(*id);
+            if found {
+                if let Some(inside) = covered(&rounds, id, param, *value) {
+                    coverage.0 += usize::from(inside);
+                    coverage.1 += 1;
+                }
+            }
+            (id.to_string(), found)
+        })
+        .collect();
+    Ok(Outcome {
+        class: class_of(c),
+        campaign: c.runs.len() > 1,
+        nothing_hidden: c.scenario.picks.is_empty() && c.scenario.perturb_maps.is_none(),
+        honest,
+        miss: kind == "nothing_missing" && any_moved_high,
+        false_claim,
+        library,
+        coverage,
+        rounds: rounds.len(),
+        last: last_j["verdict"].as_str().unwrap_or("").chars().take(160).collect(),
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// Whether the 95 % interval of `id`.`param` in the first round whose selection names
+/// it holds `truth`.
+fn covered(rounds: &[Value], id: &str, param: &str, truth: f64) -> Option<bool> {
+    let label = |e: &str| e == id || e.strip_prefix(id).is_some_and(|r| r.starts_with('.'));
+    for j in rounds {
+        let named = j["selected"]
+            .as_array()
+            .is_some_and(|s| s.iter().any(|x| x["effect"].as_str().is_some_and(label)));
+        let lead =
+            j["ranking"].as_array().and_then(|r| r.iter().find(|x| x["effect"].as_str().is_some_and(label)));
+        if let (true, Some(l)) = (named || j["kind"] == "missing", lead) {
+            let ci = &l["ci95"][param];
+            if let (Some(lo), Some(hi)) = (ci[0].as_f64(), ci[1].as_f64()) {
+                return Some(lo <= truth && truth <= hi);
+            }
+        }
+    }
+    None
+}
+
+fn pct(a: usize, b: usize) -> String {
+    if b == 0 {
+        "-".into()
+    } else {
+        format!("{:.1} % ({a}/{b})", 100.0 * a as f64 / b as f64)
+    }
+}
+
+fn main() {
+    let n: u64 = arg("--cases").and_then(|v| v.parse().ok()).unwrap_or(200);
+    let first: u64 = arg("--first").and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
+    let check = std::env::args().any(|a| a == "--check");
+    let mut outcomes = Vec::new();
+    println!(
+        "{:>9} {:<22} {:>4} {:>6} {:>6} {:>7}  last verdict",
+        "seed", "class", "runs", "honest", "rounds", "s"
+    );
+    for seed in first..first + n {
+        let dir = tempfile::tempdir().expect("a temporary directory");
+        let case = match make_case(dir.path(), seed) {
+            Ok(c) => c,
+            Err(e) => {
+                println!("{seed:>9} the bench refused the case: {e}");
+                continue;
+            }
+        };
+        match judge(dir.path(), &case) {
+            Ok(o) => {
+                println!(
+                    "{:>9} {:<22} {:>4} {:>6} {:>6} {:>7.1}  {}{}{}",
+                    case.seed,
+                    o.class,
+                    case.runs.len(),
+                    if o.honest { "yes" } else { "NO" },
+                    o.rounds,
+                    o.seconds,
+                    if o.miss { "[MISS] " } else { "" },
+                    if o.false_claim.is_empty() {
+                        String::new()
+                    } else {
+                        format!("[FALSE {:?}] ", o.false_claim)
+                    },
+                    o.last
+                );
+                outcomes.push(o);
+            }
+            Err(e) => println!("{seed:>9} failed: {e}"),
+        }
+    }
+    std::process::exit(i32::from(!summary(&outcomes) && check));
+}
+
+/// Print the figures by class and overall; whether every target is met.
+fn summary(o: &[Outcome]) -> bool {
+    let count = |f: &dyn Fn(&Outcome) -> bool| o.iter().filter(|x| f(x)).count();
+    let classes: BTreeSet<&str> = o.iter().map(|x| x.class.as_str()).collect();
+    println!("\n{:<24} {:>5} {:>18} {:>6} {:>12}", "class", "cases", "honest", "misses", "false claims");
+    for cl in classes {
+        let of = |x: &Outcome| x.class == cl;
+        println!(
+            "{:<24} {:>5} {:>18} {:>6} {:>12}",
+            cl,
+            count(&of),
+            pct(count(&|x| of(x) && x.honest), count(&of)),
+            count(&|x| of(x) && x.miss),
+            count(&|x| of(x) && !x.false_claim.is_empty())
+        );
+    }
+    let total = o.len();
+    let honest = count(&|x| x.honest);
+    let false_claims = count(&|x| !x.false_claim.is_empty());
+    let lib = |camp: bool| {
+        let all: Vec<&(String, bool)> =
+            o.iter().filter(|x| x.campaign == camp).flat_map(|x| &x.library).collect();
+        (all.iter().filter(|(_, f)| *f).count(), all.len())
+    };
+    let (fs, ns) = lib(false);
+    let (fc, nc) = lib(true);
+    let quiet = count(&|x| x.nothing_hidden && x.library.is_empty() && x.false_claim.is_empty() && x.honest);
+    let hidden_none = count(&|x| x.nothing_hidden);
+    let (cin, ctot) = o.iter().fold((0, 0), |a, x| (a.0 + x.coverage.0, a.1 + x.coverage.1));
+    println!("\nhonest: {}  (target >= 95 %)", pct(honest, total));
+    println!("false claims: {}  (target <= 2 %)", pct(false_claims, total));
+    println!("misses: {}", count(&|x| x.miss));
+    println!("library effects found, single runs: {}  (target >= 95 %)", pct(fs, ns));
+    println!("library effects found, campaigns: {}  (target >= 98 %)", pct(fc, nc));
+    println!("nothing hidden, nothing claimed: {}  (target >= 98 %)", pct(quiet, hidden_none));
+    println!("95 % intervals covering the truth: {}  (target 90-99 %)", pct(cin, ctot));
+    let rate = |a: usize, b: usize| if b == 0 { 1.0 } else { a as f64 / b as f64 };
+    let cov = rate(cin, ctot);
+    rate(honest, total) >= 0.95
+        && rate(false_claims, total) <= 0.02
+        && rate(fs, ns) >= 0.95
+        && rate(fc, nc) >= 0.98
+        && rate(quiet, hidden_none) >= 0.98
+        && (ctot == 0 || (0.90..=0.99).contains(&cov))
+}
