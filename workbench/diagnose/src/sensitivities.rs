@@ -2,11 +2,11 @@
 //! simulation per parameter (finite differences, in parallel) — and the weighted normal
 //! equations of the linear fits, whole and per channel.
 
-use model_core::Effects;
+use model_core::{Channel, Effects};
 
 use super::engine::{Options, Twin};
 use super::library::{current_value, library, with_values, ParamSpec};
-use super::preparation::{run_all, Prepared};
+use super::preparation::{channel_energies, run_all, Prepared};
 
 /// The library's parameters and the linearised model around the current one.
 pub(super) struct Sensitivities {
@@ -40,9 +40,29 @@ impl Sensitivities {
     }
 }
 
-/// Simulate one step of every library parameter and set up the normal equations.
+/// A channel's own measurement chain is a candidate only where the channel's error is
+/// this much above its noise (weighted energy per fit sample; noise alone gives 1 to
+/// about 1 %): a sensor cause moves its channel alone, so it cannot explain error
+/// elsewhere, and the 56 chain parameters of quiet channels would double the work.
+pub const SENSOR_EXCESS: f64 = 1.02;
+
+/// Whether `s` is worth a sensitivity run on this data: every physical parameter, and
+/// the chain parameters of channels with error above [`SENSOR_EXCESS`].
+fn worth_fitting(s: &ParamSpec, p: &Prepared, channels: &[Channel], energies: &[f64]) -> bool {
+    if s.cause == s.effect {
+        return true;
+    }
+    let n = p.idx.len().max(1) as f64;
+    let fitted = Channel::from_key(s.param).and_then(|c| channels.iter().position(|k| *k == c));
+    fitted.and_then(|i| energies.get(i)).is_some_and(|e| e / n > SENSOR_EXCESS)
+}
+
+/// Simulate one step of every library parameter worth fitting and set up the normal
+/// equations.
 pub(super) fn sensitivities(twin: &dyn Twin, p: &Prepared, o: &Options) -> Result<Sensitivities, String> {
-    let specs = library(&o.params);
+    let energies = channel_energies(p, &p.base_sim);
+    let specs: Vec<ParamSpec> =
+        library(&o.params).into_iter().filter(|s| worth_fitting(s, p, twin.channels(), &energies)).collect();
     let starts: Vec<f64> = specs.iter().map(|s| current_value(&o.base, s)).collect();
     let steps: Vec<f64> = specs
         .iter()
