@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 step() { printf '\n==> %s\n' "$*"; }
 as_root() { if [ "$(id -u)" = 0 ]; then "$@"; else sudo "$@"; fi; }
 
-step "set-up: Cortex-M4F target, QEMU, /usr/bin/time (peak memory)"
+step "set-up: Cortex-M4F target, QEMU, /usr/bin/time (peak memory), Chromium (check --html)"
 rustup target list --installed | grep -qx thumbv7em-none-eabihf || rustup target add thumbv7em-none-eabihf
 if ! command -v qemu-system-arm >/dev/null; then
   as_root apt-get update -qq
@@ -16,6 +16,11 @@ fi
 if [ ! -x /usr/bin/time ]; then
   as_root apt-get update -qq
   as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq time
+fi
+# `simrod check --html` is rendered in headless Chromium (workbench/tests/check_cli.rs).
+if [ ! -x /usr/bin/chromium ]; then
+  as_root apt-get update -qq
+  as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium
 fi
 rustup component list --installed | grep -q '^rustfmt' || rustup component add rustfmt
 rustup component list --installed | grep -q '^clippy' || rustup component add clippy
@@ -27,13 +32,22 @@ step "lints (clippy, all targets, warnings are errors)"
 cargo clippy --all-targets -- -D warnings
 cargo clippy -p model-core --target thumbv7em-none-eabihf -- -D warnings
 
-step "model-core builds for the target without std or alloc"
+step "model-core and the xDT build for the target without std or alloc"
 cargo build -p model-core --target thumbv7em-none-eabihf
 cargo build -p model-core --target thumbv7em-none-eabihf --features defmt
 cargo build -p model-core --target thumbv7em-none-eabihf --features profile-hooks
+cargo build -p simrod-xdt --target thumbv7em-none-eabihf
+cargo clippy -p simrod-xdt --target thumbv7em-none-eabihf -- -D warnings
 
 step "firmware builds"
 cargo build -p firmware --release --target thumbv7em-none-eabihf
+
+step "FMU validators: Python environment (FMPy, FMU Manipulation Toolbox; scripts/py-env.sh) and valgrind"
+scripts/py-env.sh
+if ! command -v valgrind >/dev/null; then
+  as_root apt-get update -qq
+  as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq valgrind
+fi
 
 step "all host tests (model, workbench, physics plant, firmware under QEMU, reference accuracy)"
 cargo test
@@ -44,6 +58,9 @@ cargo bench -p simrod-plant --bench plant_speed -- --quick --guard 6
 step "peak memory of compare and diagnose on a 40 MB run (aims: 4x / 8x the file + 200 MB; the 300 MB run: --mb 300)"
 cargo build -p workbench --bin simrod
 cargo run -p workbench --example memory -- --mb 40 --guard
+
+step "issue 12's blind loop, short: 2 cases on tuning seeds (the proof: --cases 200, seeds from 1,000,000)"
+cargo run -p workbench --example blind_loop -- --cases 2 --first 500000
 
 step "fuzz smoke run: CSV, MAT, TOML files, serial decoder, 20 s each on the committed corpus (docs/FUZZING.md)"
 scripts/fuzz.sh 20

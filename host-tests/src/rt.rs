@@ -24,7 +24,7 @@ pub mod protocol;
 /// The firmware's target.
 pub const TARGET: &str = "thumbv7em-none-eabihf";
 /// The binaries of the firmware crate.
-pub const BINARIES: [&str; 3] = ["firmware", "simrod-trace", "simrod-cost"];
+pub const BINARIES: [&str; 4] = ["firmware", "simrod-trace", "simrod-cost", "simrod-xil"];
 /// The profiles `simrod-cost` runs, in its order.
 pub const COST_PROFILES: [Builtin; 3] = [Builtin::TP07, Builtin::TP11, Builtin::TP14];
 

@@ -711,6 +711,61 @@ impl Effects {
     }
 }
 
+/// A delay longer than the model's delay line holds at a time step: the model would cut
+/// it, so the commands refuse it instead ([`Effects::check_delays`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DelayTooLong {
+    /// What is delayed: `controller_delay.delay_s`, or all channels' `sensor_delay`.
+    pub what: &'static str,
+    /// [s] the delay asked for (for `sensor_delay`: all channels together).
+    pub seconds: f64,
+    /// The steps it takes at `dt_us`.
+    pub steps: u64,
+    /// The steps the line holds.
+    pub capacity: usize,
+    /// [µs] the time step.
+    pub dt_us: u32,
+}
+
+impl fmt::Display for DelayTooLong {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let cap_s = self.capacity as f64 * f64::from(self.dt_us) * 1e-6;
+        write!(
+            f,
+            "{} = {} s is {} steps at a {} µs step; the model holds at most {} steps ({} s at this step)",
+            self.what, self.seconds, self.steps, self.dt_us, self.capacity, cap_s
+        )
+    }
+}
+
+/// Whole steps of `seconds` at `dt_s`, as the model rounds a delay.
+fn delay_steps(seconds: f32, dt_s: f64) -> u64 {
+    (f64::from(seconds) / dt_s + 0.5) as u64
+}
+
+impl Effects {
+    /// Whether every delay fits its line at step `dt_us`: the controller delay
+    /// ([`DELAY_CAPACITY`]) and the sensor delays of all channels together
+    /// ([`crate::chain::SENSOR_DELAY_CAPACITY`]).
+    pub fn check_delays(&self, dt_us: u32) -> Result<(), DelayTooLong> {
+        let dt_s = f64::from(dt_us) * 1e-6;
+        let steps = delay_steps(self.controller_delay_s, dt_s);
+        if steps > DELAY_CAPACITY as u64 {
+            let seconds = f64::from(self.controller_delay_s);
+            let what = "controller_delay.delay_s";
+            return Err(DelayTooLong { what, seconds, steps, capacity: DELAY_CAPACITY, dt_us });
+        }
+        let steps: u64 = self.sensor_delay_s.iter().map(|d| delay_steps(*d, dt_s)).sum();
+        let capacity = crate::chain::SENSOR_DELAY_CAPACITY;
+        if steps > capacity as u64 {
+            let seconds = self.sensor_delay_s.iter().map(|d| f64::from(*d)).sum();
+            let what = "sensor_delay (all channels together)";
+            return Err(DelayTooLong { what, seconds, steps, capacity, dt_us });
+        }
+        Ok(())
+    }
+}
+
 impl Default for Effects {
     fn default() -> Self {
         Self::NONE
@@ -773,6 +828,23 @@ pub fn effect_ids() -> impl Iterator<Item = &'static str> + Clone {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn delays_beyond_their_lines_are_refused_with_the_numbers() {
+        let mut fx = Effects::NONE;
+        fx.controller_delay_s = 0.256;
+        assert!(fx.check_delays(1000).is_ok());
+        let e = fx.check_delays(100).unwrap_err();
+        assert_eq!((e.steps, e.capacity), (2560, DELAY_CAPACITY));
+        fx.controller_delay_s = 0.0;
+        (fx.sensor_delay_s[1], fx.sensor_delay_s[2]) = (0.1, 0.028);
+        assert!(fx.check_delays(1000).is_ok());
+        fx.sensor_delay_s[3] = 0.001;
+        let e = fx.check_delays(1000).unwrap_err();
+        assert_eq!((e.what, e.steps), ("sensor_delay (all channels together)", 129));
+        let text = std::format!("{e}");
+        assert!(text.contains("129 steps at a 1000 µs step") && text.contains("at most 128 steps"), "{text}");
+    }
 
     /// The generated range check refuses exactly the parameter whose declared range a
     /// value leaves, and names it; the range's ends, where inclusive, pass.

@@ -203,8 +203,8 @@ fn scenario_args(args: &BenchArgs, s: &Scenario) -> Result<SimulateArgs, CmdErro
     }
     let mut run = r.clone();
     run.source.profile = Some(s.profile);
-    run.throttle_scale = Some(s.throttle_scale);
-    run.load_scale = Some(s.load_scale);
+    run.scales.throttle_scale = Some(s.throttle_scale);
+    run.scales.load_scale = Some(s.load_scale);
     Ok(run)
 }
 

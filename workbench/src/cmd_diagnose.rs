@@ -17,7 +17,6 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Args;
-use model_core::effects::DELAY_CAPACITY;
 use model_core::{Channel, Effects};
 use serde_json::{json, Map, Value};
 
@@ -29,6 +28,7 @@ use crate::error::CmdError;
 use crate::measure::{self, LoadOptions, Mapping, GAP_CHANNEL};
 use crate::report::table::columns;
 use crate::report::{change_pct, num, pct};
+use crate::simulate::check_delay;
 use crate::twin::args::{ModelArgs, SensorArgs};
 use crate::twin::{check_budget, Aligned, InputSource, MeasuredTwin, ModelOptions};
 use simrod_io::budget::BudgetArgs;
@@ -355,19 +355,6 @@ fn region_masks(runs: &[RunOnGrid], limits: &regions::Limits) -> Vec<(String, Ve
     masks
 }
 
-/// The controller delay lives in a fixed buffer; refuse a current delay the model would cap.
-fn check_delay(fx: &Effects, dt_us: u32) -> Result<(), String> {
-    let dt_s = f64::from(dt_us) * 1e-6;
-    if f64::from(fx.controller_delay_s) > DELAY_CAPACITY as f64 * dt_s {
-        return Err(format!(
-            "controller_delay.delay_s = {} s is longer than the model holds at a {dt_us} µs step ({} s)",
-            fx.controller_delay_s,
-            DELAY_CAPACITY as f64 * dt_s
-        ));
-    }
-    Ok(())
-}
-
 /// The output's directory must exist and the output must not be a directory: checked
 /// before the (long) diagnosis, so a typo costs nothing.
 fn check_out_path(out: &Path) -> Result<(), CmdError> {
@@ -677,13 +664,5 @@ mod tests {
         }
         let parsed = <Cli as clap::Parser>::try_parse_from(["simrod", "m.csv"]).unwrap().args;
         assert_eq!(format!("{parsed:?}"), format!("{:?}", DiagnoseArgs::for_file(Path::new("m.csv"))));
-    }
-
-    #[test]
-    fn long_delays_are_refused() {
-        let mut fx = Effects::NONE;
-        fx.controller_delay_s = 0.05;
-        assert!(check_delay(&fx, 1000).is_ok());
-        assert!(check_delay(&fx, 100).unwrap_err().contains("100 µs"));
     }
 }

@@ -24,10 +24,12 @@ pub use simrod_twin as twin;
 pub use simrod_vbench as vbench;
 
 pub mod cmd_bench;
+pub mod cmd_check;
 pub mod cmd_compare;
 pub mod cmd_diagnose;
 pub mod cmd_history;
 pub mod cmd_identify;
+pub mod cmd_xil;
 pub mod demo;
 pub mod history;
 pub mod iterate;

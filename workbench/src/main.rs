@@ -42,6 +42,15 @@ enum Command {
     /// chapter 5): writes a complete data directory (for --data-dir or model-core/data),
     /// report.md and charts.
     Identify(workbench::cmd_identify::IdentifyArgs),
+    /// Will this test stay inside the bench's limits? Every limit's peak, margin, time and
+    /// set; under the model's uncertainty (Monte Carlo) the probability of a violation;
+    /// the set point that keeps it inside. Exit 0 approved, 1 not, 2 bad input.
+    Check(workbench::cmd_check::CheckArgs),
+    /// Close the XiL loop offline: the twin driven by the vehicle-and-road twin (xDT) on
+    /// a drive cycle, through the RT platform's delay and sample time; writes every
+    /// channel and the vehicle's speed, reports tracking, energy per km, peak flange
+    /// torque, stability and (--margin) the delay margin.
+    Xil(workbench::cmd_xil::XilArgs),
 }
 
 fn dispatch(command: Command) -> Result<(), CmdError> {
@@ -53,6 +62,8 @@ fn dispatch(command: Command) -> Result<(), CmdError> {
         Command::History(args) => workbench::cmd_history::execute(&args),
         Command::Demo(args) => workbench::demo::execute(&args),
         Command::Identify(args) => workbench::cmd_identify::execute(&args),
+        Command::Check(args) => workbench::cmd_check::execute(&args),
+        Command::Xil(args) => workbench::cmd_xil::execute(&args),
     }
 }
 

@@ -11,7 +11,6 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use clap::Args;
-use model_core::effects::DELAY_CAPACITY;
 use model_core::model::DT_US_RANGE;
 use model_core::profile::MAX_SETS;
 use model_core::{
@@ -30,12 +29,9 @@ pub use crate::twin::args::{
 };
 use simrod_io::budget::BudgetArgs;
 
-/// Arguments of `simrod simulate`.
-#[derive(Debug, Clone, Args)]
-pub struct SimulateArgs {
-    #[command(flatten)]
-    pub source: ProfileSource,
-
+/// The scalings of a profile (`simulate`, `bench`, `check`).
+#[derive(Debug, Clone, Copy, Default, Args)]
+pub struct ScaleArgs {
     /// Throttle scale in [-1.5, 1.5]; negative runs the profile in reverse.
     /// Default: the profile file's `throttle_scale`, else 1.
     #[arg(long, value_name = "X", allow_negative_numbers = true, value_parser = parse_scale)]
@@ -45,6 +41,16 @@ pub struct SimulateArgs {
     /// Default: the profile file's `load_scale`, else 1.
     #[arg(long, value_name = "Y", allow_negative_numbers = true, value_parser = parse_scale)]
     pub load_scale: Option<f32>,
+}
+
+/// Arguments of `simrod simulate`.
+#[derive(Debug, Clone, Args)]
+pub struct SimulateArgs {
+    #[command(flatten)]
+    pub source: ProfileSource,
+
+    #[command(flatten)]
+    pub scales: ScaleArgs,
 
     /// Step [µs], 10..=10000; 1000 is the bench's rate.
     #[arg(long, value_name = "US", default_value_t = 1000, value_parser = parse_dt_us, allow_negative_numbers = true)]
@@ -204,53 +210,62 @@ impl SimulateArgs {
     /// Validate the arguments and load the input files. Everything wrong here is a
     /// usage error; nothing is written.
     pub fn spec(&self) -> Result<RunSpec, CmdError> {
-        let throttle_scale = self.throttle_scale.map(check_scale).transpose();
-        let throttle_scale = usage("--throttle-scale", throttle_scale)?;
-        let load_scale = usage("--load-scale", self.load_scale.map(check_scale).transpose())?;
-        let dt_us = usage("--dt-us", check_dt_us(self.dt_us))?;
-        let model = self.model.load()?;
-        let supply_v = model.supply_v;
-        let data = model.data.clone();
-        let (profile, name, ts, ls) = match (&self.source.profile, &self.source.profile_file) {
-            (Some(b), None) => {
-                let (ts, ls) = (throttle_scale.unwrap_or(1.0), load_scale.unwrap_or(1.0));
-                let sets = data.as_deref().and_then(|d| d.profile(b.name())).unwrap_or(b.sets());
-                let p =
-                    Profile::new(sets, ts, ls).map_err(|e| CmdError::Usage(profile_error(e, b.name())))?;
-                (p, b.name().to_string(), ts, ls)
-            }
-            (None, Some(path)) => {
-                let f = load_profile(path).map_err(|e| file_error("--profile-file", e))?;
-                let ts = throttle_scale.or(f.throttle_scale).unwrap_or(1.0);
-                let ls = load_scale.or(f.load_scale).unwrap_or(1.0);
-                let what = path.display().to_string();
-                let p =
-                    f.profile(Some(ts), Some(ls)).map_err(|e| CmdError::Usage(profile_error(e, &what)))?;
-                let name = f.name.clone().unwrap_or_else(|| {
-                    path.file_stem().map_or(what.clone(), |s| s.to_string_lossy().into_owned())
-                });
-                (p, name, ts, ls)
-            }
-            _ => {
-                return Err(CmdError::Usage(
-                    "give exactly one of --profile NAME or --profile-file FILE.toml".into(),
-                ))
-            }
-        };
-
-        if let Some(path) = &self.model.effects {
-            check_delay(&model.effects, dt_us)
-                .map_err(|m| CmdError::Usage(format!("{}: {m}", path.display())))?;
-        }
-        let config = model.config(dt_us, model.effects);
-        let title = format!(
-            "{name}: throttle x{ts}, load x{ls} | dt {dt_us} µs | supply {supply_v} V | {}",
-            self.model.describe()
-        );
-        let spec = RunSpec { title, config, profile, supply_v, data };
-        spec.simulation()?; // the model's own checks, before any output is touched
-        Ok(spec)
+        run_spec(&self.source, self.scales, self.dt_us, &self.model)
     }
+}
+
+/// The run a profile's flags describe (`simulate`, `bench`, `check`): the flags checked
+/// and the profile, effect and data files loaded once, here. Everything wrong is a usage
+/// error; nothing is written.
+pub fn run_spec(
+    source: &ProfileSource,
+    scales: ScaleArgs,
+    dt_us: u32,
+    model_args: &ModelArgs,
+) -> Result<RunSpec, CmdError> {
+    let throttle_scale = usage("--throttle-scale", scales.throttle_scale.map(check_scale).transpose())?;
+    let load_scale = usage("--load-scale", scales.load_scale.map(check_scale).transpose())?;
+    let dt_us = usage("--dt-us", check_dt_us(dt_us))?;
+    let model = model_args.load()?;
+    let supply_v = model.supply_v;
+    let data = model.data.clone();
+    let (profile, name, ts, ls) = match (&source.profile, &source.profile_file) {
+        (Some(b), None) => {
+            let (ts, ls) = (throttle_scale.unwrap_or(1.0), load_scale.unwrap_or(1.0));
+            let sets = data.as_deref().and_then(|d| d.profile(b.name())).unwrap_or(b.sets());
+            let p = Profile::new(sets, ts, ls).map_err(|e| CmdError::Usage(profile_error(e, b.name())))?;
+            (p, b.name().to_string(), ts, ls)
+        }
+        (None, Some(path)) => {
+            let f = load_profile(path).map_err(|e| file_error("--profile-file", e))?;
+            let ts = throttle_scale.or(f.throttle_scale).unwrap_or(1.0);
+            let ls = load_scale.or(f.load_scale).unwrap_or(1.0);
+            let what = path.display().to_string();
+            let p = f.profile(Some(ts), Some(ls)).map_err(|e| CmdError::Usage(profile_error(e, &what)))?;
+            let name = f.name.clone().unwrap_or_else(|| {
+                path.file_stem().map_or(what.clone(), |s| s.to_string_lossy().into_owned())
+            });
+            (p, name, ts, ls)
+        }
+        _ => {
+            return Err(CmdError::Usage(
+                "give exactly one of --profile NAME or --profile-file FILE.toml".into(),
+            ))
+        }
+    };
+
+    if let Some(path) = &model_args.effects {
+        check_delay(&model.effects, dt_us)
+            .map_err(|m| CmdError::Usage(format!("{}: {m}", path.display())))?;
+    }
+    let config = model.config(dt_us, model.effects);
+    let title = format!(
+        "{name}: throttle x{ts}, load x{ls} | dt {dt_us} µs | supply {supply_v} V | {}",
+        model_args.describe()
+    );
+    let spec = RunSpec { title, config, profile, supply_v, data };
+    spec.simulation()?; // the model's own checks, before any output is touched
+    Ok(spec)
 }
 
 /// Prefixes a value check's message with the flag it is about.
@@ -258,19 +273,10 @@ fn usage<T>(flag: &str, r: Result<T, String>) -> Result<T, CmdError> {
     r.map_err(|m| CmdError::Usage(format!("{flag}: {m}")))
 }
 
-/// The controller delay is held in a fixed buffer of `DELAY_CAPACITY` steps; the model
-/// would silently cap a longer delay, so refuse it instead.
+/// The delays are held in fixed lines; the model would cut a longer delay, so refuse it
+/// instead (with the numbers: [`Effects::check_delays`]).
 pub fn check_delay(fx: &Effects, dt_us: u32) -> Result<(), String> {
-    let dt_s = f64::from(dt_us) * 1e-6;
-    let steps = (f64::from(fx.controller_delay_s) / dt_s + 0.5).floor();
-    if steps > DELAY_CAPACITY as f64 {
-        return Err(format!(
-            "controller_delay.delay_s = {} s is {steps} steps at --dt-us {dt_us}; the model holds at most {DELAY_CAPACITY} steps ({} s at this step)",
-            fx.controller_delay_s,
-            DELAY_CAPACITY as f64 * dt_s
-        ));
-    }
-    Ok(())
+    fx.check_delays(dt_us).map_err(|e| e.to_string())
 }
 
 /// Run `sim` to the end of its profile, writing the CSV to `out` if given, and
@@ -359,7 +365,7 @@ fn print_stdout(text: &str) -> Result<(), CmdError> {
 
 /// The output's directory must exist (we do not create directories on a typo) and the
 /// output must not be a directory.
-fn check_out_path(out: &Path) -> Result<(), CmdError> {
+pub fn check_out_path(out: &Path) -> Result<(), CmdError> {
     let usage = |m: String| Err(CmdError::Usage(format!("--out {}: {m}", out.display())));
     if out.file_name().is_none() {
         return usage("expected a file name".into());

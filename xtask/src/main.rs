@@ -17,6 +17,9 @@
 //!
 //! then prints the tables, the aims met or missed, and writes everything as JSON.
 //!
+//! `cargo xtask fmu --out simrod.fmu [...]` packages the twin as an FMI 3.0 FMU
+//! (`fmu.rs`).
+//!
 //! Why an xtask and not a `simrod` subcommand: this drives cargo builds for another
 //! target and QEMU, and needs the workspace's sources and build directories; `simrod`
 //! is the twin's user tool and must not depend on any of that at run time.
@@ -25,6 +28,8 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
+
+mod fmu;
 
 use host_tests::hostbench::{self, HostCase};
 use host_tests::rt::{self, Footprint, LoopStats, Summary};
@@ -40,6 +45,13 @@ const USAGE: &str = "usage: cargo xtask bench-rt [--json FILE] [--quick] [--no-h
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     match args.first().map(String::as_str) {
+        Some("fmu") => match fmu::run(&args[1..]) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::FAILURE
+            }
+        },
         Some("bench-rt") => match bench_rt(&args[1..]) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
@@ -54,7 +66,7 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Some("-h" | "--help" | "help") => {
-            println!("{USAGE}");
+            println!("{USAGE}\n\n{}", fmu::USAGE);
             ExitCode::SUCCESS
         }
         _ => {

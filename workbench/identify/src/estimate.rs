@@ -201,7 +201,15 @@ impl Outcome {
         }
         rep.para("Only the values found here, in the model's format: `identified.toml`.");
         rep.plots.push(ReportFile { file: "identified.toml".into(), svg: self.parameters_toml(&sources) });
-        Identification { data, changed, report: rep, fits: Vec::new(), values: Vec::new() }
+        let values = self
+            .estimates
+            .iter()
+            .filter_map(|e| {
+                let value = e.value?;
+                Some(super::Value { name: e.key.clone(), value, sd: e.sigma, unit: e.unit.to_string() })
+            })
+            .collect();
+        Identification { data, changed, report: rep, fits: Vec::new(), values }
     }
 }
 

@@ -48,6 +48,10 @@ use report::Report;
 use run::Run;
 use simrod_io::datadir::ModelData;
 use simrod_io::error::CmdError;
+use simrod_io::uncertainty_file::{format_uncertainty, Dist, Target, Uncertain};
+
+/// The file [`Identification::write`] puts the identified values' uncertainties in.
+pub const UNCERTAINTY_FILE: &str = "uncertainty.toml";
 
 /// What to identify.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -159,12 +163,38 @@ impl Identification {
         self.values.iter().find(|v| v.name == name)
     }
 
-    /// Write the complete data directory, `report.md` and the charts into `dir`;
-    /// returns every file written.
+    /// Write the complete data directory, `report.md`, the charts and
+    /// `uncertainty.toml` into `dir`; returns every file written.
     pub fn write(&self, dir: &std::path::Path) -> std::io::Result<Vec<std::path::PathBuf>> {
         let mut files = self.data.write(dir)?;
         files.extend(self.report.write(dir)?);
+        let p = dir.join(UNCERTAINTY_FILE);
+        let text = self.uncertainty_toml();
+        simrod_io::atomic::write_atomic(&p, |w| w.write_all(text.as_bytes()))?;
+        files.push(p);
         Ok(files)
+    }
+
+    /// The identified parameters' standard uncertainties in the format `simrod check
+    /// --from-identify` reads: a normal around each determined `parameters.toml` value.
+    /// Map values and law coefficients (friction fit) are not parameters a Monte Carlo
+    /// can set, so they stay in report.md only.
+    pub fn uncertainty_toml(&self) -> String {
+        let items: Vec<Uncertain> = self
+            .values
+            .iter()
+            .filter(|v| v.sd.is_finite() && v.sd > 0.0 && self.data.param(&v.name).is_some())
+            .map(|v| Uncertain {
+                target: Target::Param(v.name.clone()),
+                dist: Dist::Normal { mean: Some(v.value), sd: v.sd },
+                origin: String::new(),
+            })
+            .collect();
+        format_uncertainty(
+            &items,
+            "simrod identify: the identified parameters, each a normal around its value with its\n\
+             standard uncertainty (simrod check --from-identify DIR reads this file).",
+        )
     }
 }
 
@@ -207,4 +237,36 @@ fn transient(what: What, ctx: &Context<'_>) -> Result<Identification, CmdError> 
     bar.tick(what.name());
     bar.finish();
     Ok(outcome.finish(ctx))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use simrod_io::uncertainty_file::parse_uncertainty;
+
+    #[test]
+    fn uncertainty_file_holds_the_determined_parameters_only() {
+        let v = |name: &str, value: f64, sd: f64| Value { name: name.into(), value, sd, unit: "-".into() };
+        let id = Identification {
+            data: ModelData::builtin().unwrap(),
+            changed: Vec::new(),
+            report: Report::new("t"),
+            fits: Vec::new(),
+            values: vec![
+                v("connector_resistance", 0.0301, 0.0012),
+                v("friction_L.f_t", 8.0, 0.3),
+                v("ident.accel_hs_fwd_s", 3.9, 0.1),
+                v("load_inertia_l", 0.45, f64::NAN),
+            ],
+        };
+        let u = parse_uncertainty(&id.uncertainty_toml(), "u.toml").unwrap();
+        let got: Vec<(String, Dist)> = u.iter().map(|x| (x.target.name(), x.dist)).collect();
+        assert_eq!(
+            got,
+            vec![
+                ("connector_resistance".into(), Dist::Normal { mean: Some(0.0301), sd: 0.0012 }),
+                ("ident.accel_hs_fwd_s".into(), Dist::Normal { mean: Some(3.9), sd: 0.1 }),
+            ]
+        );
+    }
 }

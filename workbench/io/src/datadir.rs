@@ -125,7 +125,7 @@ pub fn parse_map2(path: &Path, text: &str) -> Result<Map2, FileError> {
 }
 
 /// The keys `Params::set` accepts (tried on a scratch value).
-fn known_key(key: &str) -> bool {
+pub(crate) fn known_key(key: &str) -> bool {
     let mut p = Params::default();
     p.set(key, 1.0, RateSet::Identified, CouplingStiffness::Identified).is_ok()
 }

@@ -15,3 +15,4 @@ pub mod progress;
 pub mod sha256;
 pub mod sim_csv;
 pub mod toml_util;
+pub mod uncertainty_file;

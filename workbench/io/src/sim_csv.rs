@@ -13,12 +13,19 @@ use model_core::{Channel, Outputs, N_CHANNELS};
 
 /// The header line (with its newline).
 pub fn header() -> String {
+    header_with(&[])
+}
+
+/// The header line with `extra` columns `(name, unit)` after the channels (what a
+/// command adds to the twin's channels, e.g. `simrod xil`'s vehicle speed).
+pub fn header_with(extra: &[(&str, &str)]) -> String {
     let mut h = String::from("time [s]");
-    for c in Channel::ALL {
+    let columns = Channel::ALL.iter().map(|c| (c.name(), c.unit())).chain(extra.iter().copied());
+    for (name, unit) in columns {
         h.push(',');
-        h.push_str(c.name());
+        h.push_str(name);
         h.push_str(" [");
-        h.push_str(c.unit());
+        h.push_str(unit);
         h.push(']');
     }
     h.push('\n');
@@ -58,6 +65,11 @@ impl RowWriter {
 
     /// Appends one row for `o` to `w`.
     pub fn write_row(&mut self, w: &mut dyn Write, o: &Outputs) -> io::Result<()> {
+        self.write_row_with(w, o, &[])
+    }
+
+    /// Appends one row for `o` and the values of [`header_with`]'s extra columns.
+    pub fn write_row_with(&mut self, w: &mut dyn Write, o: &Outputs, extra: &[f32]) -> io::Result<()> {
         self.line.clear();
         write_time(&mut self.line, o.t_us);
         for (v, last) in o.values.iter().zip(self.last.iter_mut()) {
@@ -70,6 +82,10 @@ impl RowWriter {
                 last.bits = Some(bits);
             }
             self.line.push_str(&last.text);
+        }
+        for v in extra {
+            // Formatting into a String cannot fail.
+            let _ = write!(self.line, ",{v}");
         }
         self.line.push('\n');
         w.write_all(self.line.as_bytes())
@@ -111,6 +127,19 @@ mod tests {
             write_time(&mut b, t);
             assert_eq!(b, s);
         }
+    }
+
+    #[test]
+    fn extra_columns_follow_the_channels() {
+        let h = header_with(&[("v_vehicle", "km/h")]);
+        assert!(h.ends_with(",v_vehicle [km/h]\n") && h.starts_with(header().trim_end()), "{h}");
+        let mut w = RowWriter::new();
+        let mut buf = Vec::new();
+        let o = Outputs { t_us: 5, ..Outputs::default() };
+        w.write_row_with(&mut buf, &o, &[12.5, -0.25]).unwrap();
+        let line = String::from_utf8(buf).unwrap();
+        assert_eq!(line.trim_end().split(',').count(), N_CHANNELS + 3);
+        assert!(line.ends_with(",12.5,-0.25\n"), "{line}");
     }
 
     /// The per-column cache must never serve a stale value, not even for -0 after 0.

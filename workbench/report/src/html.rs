@@ -284,6 +284,15 @@ fn history_section(o: &mut String, h: &HistoryView) {
     o.push_str(&history_chart("NRMSE per iteration", "NRMSE [%]", &series));
 }
 
+/// The start of a self-contained report page (`simrod compare --report`, `simrod
+/// check --html`): doctype, title and the shared style, up to the open `<body>`.
+pub fn page_start(title: &str) -> String {
+    format!(
+        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title><style>{CSS}</style></head><body>",
+        esc(title)
+    )
+}
+
 /// The report page.
 pub fn render(r: &CompareResult) -> String {
     render_with(r, &Extras::default())
@@ -293,11 +302,7 @@ pub fn render(r: &CompareResult) -> String {
 pub fn render_with(r: &CompareResult, x: &Extras) -> String {
     let s = &r.setup;
     let mut o = String::with_capacity(1 << 20);
-    let _ = write!(
-        o,
-        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>simrod compare: {}</title><style>{CSS}</style></head><body>",
-        esc(&s.source)
-    );
+    o.push_str(&page_start(&format!("simrod compare: {}", s.source)));
     let _ = write!(
         o,
         "<h1>Measurement vs twin</h1><p>{}<br>{} samples, {:.3} s, model step {} µs; inputs: {}; supply {} V; effects {}.</p>",
