@@ -30,6 +30,7 @@ pub mod bench;
 pub mod board;
 pub mod clock;
 pub mod hostio;
+pub mod icount;
 pub mod io;
 pub mod protocol;
 pub mod step;

@@ -353,78 +353,52 @@ pub unsafe extern "C" fn fmi3Reset(instance: Fmi3Instance) -> Status {
 // Getting and setting variable values
 // ---------------------------------------------------------------------------------
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi3GetFloat64(
-    instance: Fmi3Instance,
-    valueReferences: *const Fmi3ValueReference,
-    nValueReferences: usize,
-    values: *mut f64,
-    nValues: usize,
-) -> Status {
-    with(instance, "fmi3GetFloat64", |inst| {
-        // SAFETY: the importer's arrays of the given lengths (FMI).
-        let (vrs, out) = unsafe {
-            (
-                slice(valueReferences, nValueReferences, "valueReferences")?,
-                slice_mut(values, nValues, "values")?,
-            )
-        };
-        inst.get_f64(vrs, out)
-    })
+/// Getters and setters of the types this FMU has variables of: each checks the
+/// importer's arrays and hands them to the instance's typed accessor.
+macro_rules! typed_access {
+    ($($get:ident, $set:ident, $t:ty, $inst_get:ident, $inst_set:ident;)*) => {$(
+        #[no_mangle]
+        pub unsafe extern "C" fn $get(
+            instance: Fmi3Instance,
+            valueReferences: *const Fmi3ValueReference,
+            nValueReferences: usize,
+            values: *mut $t,
+            nValues: usize,
+        ) -> Status {
+            with(instance, stringify!($get), |inst| {
+                // SAFETY: the importer's arrays of the given lengths (FMI).
+                let (vrs, out) = unsafe {
+                    (
+                        slice(valueReferences, nValueReferences, "valueReferences")?,
+                        slice_mut(values, nValues, "values")?,
+                    )
+                };
+                inst.$inst_get(vrs, out)
+            })
+        }
+
+        #[no_mangle]
+        pub unsafe extern "C" fn $set(
+            instance: Fmi3Instance,
+            valueReferences: *const Fmi3ValueReference,
+            nValueReferences: usize,
+            values: *const $t,
+            nValues: usize,
+        ) -> Status {
+            with(instance, stringify!($set), |inst| {
+                // SAFETY: the importer's arrays of the given lengths (FMI).
+                let (vrs, vals) = unsafe {
+                    (slice(valueReferences, nValueReferences, "valueReferences")?, slice(values, nValues, "values")?)
+                };
+                inst.$inst_set(vrs, vals)
+            })
+        }
+    )*};
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi3SetFloat64(
-    instance: Fmi3Instance,
-    valueReferences: *const Fmi3ValueReference,
-    nValueReferences: usize,
-    values: *const f64,
-    nValues: usize,
-) -> Status {
-    with(instance, "fmi3SetFloat64", |inst| {
-        // SAFETY: the importer's arrays of the given lengths (FMI).
-        let (vrs, vals) = unsafe {
-            (slice(valueReferences, nValueReferences, "valueReferences")?, slice(values, nValues, "values")?)
-        };
-        inst.set_f64(vrs, vals)
-    })
-}
-
-#[no_mangle]
-pub unsafe extern "C" fn fmi3GetInt64(
-    instance: Fmi3Instance,
-    valueReferences: *const Fmi3ValueReference,
-    nValueReferences: usize,
-    values: *mut i64,
-    nValues: usize,
-) -> Status {
-    with(instance, "fmi3GetInt64", |inst| {
-        // SAFETY: the importer's arrays of the given lengths (FMI).
-        let (vrs, out) = unsafe {
-            (
-                slice(valueReferences, nValueReferences, "valueReferences")?,
-                slice_mut(values, nValues, "values")?,
-            )
-        };
-        inst.get_i64(vrs, out)
-    })
-}
-
-#[no_mangle]
-pub unsafe extern "C" fn fmi3SetInt64(
-    instance: Fmi3Instance,
-    valueReferences: *const Fmi3ValueReference,
-    nValueReferences: usize,
-    values: *const i64,
-    nValues: usize,
-) -> Status {
-    with(instance, "fmi3SetInt64", |inst| {
-        // SAFETY: the importer's arrays of the given lengths (FMI).
-        let (vrs, vals) = unsafe {
-            (slice(valueReferences, nValueReferences, "valueReferences")?, slice(values, nValues, "values")?)
-        };
-        inst.set_i64(vrs, vals)
-    })
+typed_access! {
+    fmi3GetFloat64, fmi3SetFloat64, f64, get_f64, set_f64;
+    fmi3GetInt64, fmi3SetInt64, i64, get_i64, set_i64;
 }
 
 /// Getters and setters of the types this FMU has no variables of.

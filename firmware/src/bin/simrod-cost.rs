@@ -20,12 +20,10 @@
 #![no_std]
 #![no_main]
 
-use core::sync::atomic::{compiler_fence, AtomicU32, Ordering};
-
-use cortex_m::peripheral::syst::SystClkSource;
-use cortex_m::peripheral::SYST;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use firmware::hostio::{HostFile, HostOut};
+use firmware::icount::{between, counts, stamp};
+use firmware::nop_region;
 use firmware::protocol::{self, Fnv1a64};
 use firmware::step::{simrod_profile_at, simrod_step};
 use model_core::{Builtin, Inputs, Model, Outputs, Profile, RateSet};
@@ -41,67 +39,7 @@ const BATCH: usize = 128;
 /// Bytes painted below the stack pointer before each step.
 const STACK_WINDOW: usize = 2048;
 const STACK_PAINT: u32 = 0x5354_4b21;
-/// SysTick's counter is 24 bits wide.
-const SYST_MASK: u32 = 0x00ff_ffff;
-/// Timer nanoseconds per count (the core clock).
-const NS_PER_COUNT: u32 = 1_000_000_000 / firmware::board::SYSCLK_HZ;
-
 type Out = HostOut<{ 4 * RECORD_WORDS * BATCH }>;
-
-/// Virtual nanoseconds per instruction (2^shift), from the command line.
-static NS_PER_INSN: AtomicU32 = AtomicU32::new(128);
-
-/// The SysTick counter, read at an exact point of the instruction stream.
-#[inline(always)]
-fn stamp() -> u32 {
-    compiler_fence(Ordering::SeqCst);
-    let v = SYST::get_current();
-    compiler_fence(Ordering::SeqCst);
-    v
-}
-
-/// Timer counts from stamp `from` to stamp `to` (the counter counts down).
-#[inline(always)]
-fn counts(from: u32, to: u32) -> u32 {
-    from.wrapping_sub(to) & SYST_MASK
-}
-
-/// Instructions in an interval of `c` timer counts, rounded to the nearest.
-#[inline(always)]
-fn insns(c: u32) -> u32 {
-    let ns = NS_PER_INSN.load(Ordering::Relaxed);
-    (c * NS_PER_COUNT + ns / 2) / ns
-}
-
-/// Instructions executed strictly between the two timer reads of an interval of `c`
-/// counts (the first read itself excluded).
-#[inline(always)]
-fn between(c: u32) -> u32 {
-    insns(c).saturating_sub(1)
-}
-
-/// Calibration: two timer reads with exactly `k` nops between them, in one `asm!` block
-/// so the compiler cannot add anything; `(k, instructions between, raw counts)`.
-macro_rules! nop_region {
-    ($k:literal) => {{
-        let (a, b): (u32, u32);
-        // SAFETY: two reads of the SysTick current-value register and `nop`s.
-        unsafe {
-            core::arch::asm!(
-                "ldr {a}, [{t}]",
-                concat!(".rept ", stringify!($k)),
-                "nop",
-                ".endr",
-                "ldr {b}, [{t}]",
-                t = in(reg) 0xE000_E018u32,
-                a = out(reg) a,
-                b = out(reg) b,
-                options(nostack, preserves_flags, readonly),
-            )
-        };
-        ($k, between(counts(a, b)), counts(a, b))
-    }};
-}
 
 /// Per-block timing through model-core's probe (feature `profile`).
 #[cfg(feature = "profile")]
@@ -110,7 +48,9 @@ mod blocks {
 
     use model_core::probe::Block;
 
-    use super::{between, counts, stamp, N_BLOCKS};
+    use firmware::icount::{between, counts, stamp};
+
+    use super::N_BLOCKS;
 
     static LAST: AtomicU32 = AtomicU32::new(0);
     static CUR: AtomicU32 = AtomicU32::new(0);
@@ -159,7 +99,7 @@ mod blocks {
     /// function pointer, as the model makes them.
     pub fn mark_overhead() -> u32 {
         let f: fn(Block) = core::hint::black_box(mark);
-        begin(super::stamp());
+        begin(stamp());
         f(Block::Tables);
         f(Block::Tables);
         let v = INSNS.get(Block::Tables as usize + 1).map_or(0, |v| v.load(Relaxed));
@@ -255,20 +195,7 @@ fn run(out: &mut Out, which: Builtin, rates: RateSet) {
 fn main() -> ! {
     let mut args = [0u8; 160];
     let args = firmware::qemu_cmdline(&mut args);
-    let shift = firmware::option(args, "shift").and_then(|v| v.parse::<u32>().ok()).unwrap_or(7);
-    if !(7..=10).contains(&shift) {
-        defmt::panic!("shift={=u32}: exact counts need -icount shift=7..10", shift);
-    }
-    NS_PER_INSN.store(1 << shift, Ordering::Relaxed);
-    let Some(mut cp) = cortex_m::Peripherals::take() else {
-        defmt::panic!("core peripherals taken twice");
-    };
-    // Free-running, no interrupt: the timer only.
-    cp.SYST.set_clock_source(SystClkSource::Core);
-    cp.SYST.set_reload(SYST_MASK);
-    cp.SYST.clear_current();
-    cp.SYST.disable_interrupt();
-    cp.SYST.enable_counter();
+    let shift = firmware::icount::start(args);
     let sp = cortex_m::register::msp::read() as usize;
     let bottom = core::ptr::addr_of!(_stack_end) as usize;
     if sp < bottom + 4 * STACK_WINDOW {

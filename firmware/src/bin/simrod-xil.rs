@@ -26,12 +26,10 @@
 #![no_std]
 #![no_main]
 
-use core::sync::atomic::{compiler_fence, AtomicU32, Ordering};
-
-use cortex_m::peripheral::syst::SystClkSource;
-use cortex_m::peripheral::SYST;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use firmware::hostio::{HostFile, HostOut};
+use firmware::icount::{between, counts, stamp};
+use firmware::nop_region;
 use firmware::protocol::{self, Fnv1a64};
 use firmware::step::{simrod_profile_at, simrod_step};
 use model_core::{Builtin, Inputs, Model, Outputs, Profile, N_CHANNELS};
@@ -50,54 +48,7 @@ const RUNS: [(Cycle, u32, u32); 2] = [(Cycle::Ece15, 1, 2), (Cycle::Hill, 5, 7)]
 const RECORD: usize = 8 + 4 * (N_CHANNELS + SIGNALS.len()) + 4;
 /// Steps buffered per semihosting write.
 const BATCH: usize = 64;
-/// SysTick's counter is 24 bits wide.
-const SYST_MASK: u32 = 0x00ff_ffff;
-/// Timer nanoseconds per count (the core clock).
-const NS_PER_COUNT: u32 = 1_000_000_000 / firmware::board::SYSCLK_HZ;
-
 type Out = HostOut<{ RECORD * BATCH }>;
-
-/// Virtual nanoseconds per instruction (2^shift), from the command line.
-static NS_PER_INSN: AtomicU32 = AtomicU32::new(128);
-
-/// The SysTick counter, read at an exact point of the instruction stream.
-#[inline(always)]
-fn stamp() -> u32 {
-    compiler_fence(Ordering::SeqCst);
-    let v = SYST::get_current();
-    compiler_fence(Ordering::SeqCst);
-    v
-}
-
-/// Instructions strictly between two stamps (the counter counts down).
-#[inline(always)]
-fn between(from: u32, to: u32) -> u32 {
-    let c = from.wrapping_sub(to) & SYST_MASK;
-    let ns = NS_PER_INSN.load(Ordering::Relaxed);
-    ((c * NS_PER_COUNT + ns / 2) / ns).saturating_sub(1)
-}
-
-/// Two timer reads with exactly `k` nops between them; `(k, instructions between)`.
-macro_rules! nop_region {
-    ($k:literal) => {{
-        let (a, b): (u32, u32);
-        // SAFETY: two reads of the SysTick current-value register and `nop`s.
-        unsafe {
-            core::arch::asm!(
-                "ldr {a}, [{t}]",
-                concat!(".rept ", stringify!($k)),
-                "nop",
-                ".endr",
-                "ldr {b}, [{t}]",
-                t = in(reg) 0xE000_E018u32,
-                a = out(reg) a,
-                b = out(reg) b,
-                options(nostack, preserves_flags, readonly),
-            )
-        };
-        ($k, between(a, b))
-    }};
-}
 
 /// One step of the closed loop, under a fixed symbol name (the cost is this call).
 #[inline(never)]
@@ -131,7 +82,7 @@ fn twin(out: &mut Out) {
         let t0 = stamp();
         simrod_step(&mut model, &inputs, &mut o);
         let t1 = stamp();
-        put_u32(out, between(t0, t1));
+        put_u32(out, between(counts(t0, t1)));
         hash.write_f32s(&o.values);
     }
     out.put(&hash.0.to_le_bytes());
@@ -167,7 +118,7 @@ fn run(out: &mut Out, cycle: Cycle, period: u32, delay: u32) {
             break;
         }
         let o = lp.outputs();
-        let insns = between(t0, t1);
+        let insns = between(counts(t0, t1));
         worst = worst.max(insns);
         rec[..8].copy_from_slice(&o.bench.t_us.to_le_bytes());
         let signals = o.signals();
@@ -189,19 +140,7 @@ fn run(out: &mut Out, cycle: Cycle, period: u32, delay: u32) {
 fn main() -> ! {
     let mut args = [0u8; 160];
     let args = firmware::qemu_cmdline(&mut args);
-    let shift = firmware::option(args, "shift").and_then(|v| v.parse::<u32>().ok()).unwrap_or(7);
-    if !(7..=10).contains(&shift) {
-        defmt::panic!("shift={=u32}: exact counts need -icount shift=7..10", shift);
-    }
-    NS_PER_INSN.store(1 << shift, Ordering::Relaxed);
-    let Some(mut cp) = cortex_m::Peripherals::take() else {
-        defmt::panic!("core peripherals taken twice");
-    };
-    cp.SYST.set_clock_source(SystClkSource::Core);
-    cp.SYST.set_reload(SYST_MASK);
-    cp.SYST.clear_current();
-    cp.SYST.disable_interrupt();
-    cp.SYST.enable_counter();
+    let shift = firmware::icount::start(args);
 
     let Some(file) = HostFile::create(concat!("simrod-xil.bin", "\0")) else {
         defmt::panic!("cannot create simrod-xil.bin on the host");
@@ -214,7 +153,7 @@ fn main() -> ! {
     put_u32(&mut out, 1 << shift);
     let cal = [nop_region!(0), nop_region!(1), nop_region!(13), nop_region!(100), nop_region!(200)];
     put_u32(&mut out, cal.len() as u32);
-    for (k, n) in cal {
+    for (k, n, _) in cal {
         put_u32(&mut out, k);
         put_u32(&mut out, n);
     }
