@@ -11,14 +11,17 @@ use std::path::PathBuf;
 
 use clap::Args;
 use simrod_check::limits::Limits;
-use simrod_check::run::ProfileRun;
+use simrod_check::run::{ProfileRun, TestRun};
 use simrod_check::uncertainty::{self, Choice, Uncertainty};
 use simrod_check::{check, report, CheckError, CheckOptions, CheckReport};
 
 use crate::atomic::write_atomic;
+use crate::cmd_xil::{parse_cycle, LoopArgs, XilSpec};
 use crate::error::CmdError;
-use crate::simulate::{parse_dt_us, parse_seed, run_spec, ProfileSource, ScaleArgs};
+use crate::simulate::{check_dt_us, parse_dt_us, parse_seed, run_spec, ProfileSource, ScaleArgs};
 use crate::twin::args::{file_error, ModelArgs};
+use crate::xil_run::{delay_check, XilRun};
+use simrod_xdt::Cycle;
 
 /// What `simrod check --help` explains after the options.
 const HOW: &str = "\
@@ -35,9 +38,14 @@ How the check is made:
                threads). Per limit the probability of a violation with its Clopper-Pearson
                interval at --confidence P, and the worst case seen. Safe: the interval's upper
                end is at most 1 - P; likely crossed: the estimate is above 1 - P.
-  Set points   for every limit that does not pass, the largest throttle scale (load kept) and
+  Set points   (profiles) for every limit that does not pass, the largest throttle scale (load kept) and
                load scale (throttle kept) at which the nominal model stays inside the limit
                tightened by the Monte Carlo's spread (bisection, 1/256 of the scale).
+  XiL loop     --cycle NAME runs the closed loop (twin + vehicle twin through the RT platform's
+               --loop-delay-ms and --loop-dt-ms) as the test; the Monte Carlo draws the twin's
+               parameters. Its delay margin (bisection at the bench's 1 ms step, as
+               `simrod xil --margin`) must be at least --delay-safety K times the loop delay.
+               A closed loop has no set-point scales: the set-point search does not apply.
   Exit code    0 approved, 1 not approved (a limit crossed, likely crossed or undecided),
                2 bad input.";
 
@@ -50,6 +58,22 @@ pub struct CheckArgs {
 
     #[command(flatten)]
     pub scales: ScaleArgs,
+
+    /// Check a closed XiL loop on this drive cycle instead of a profile (ece15,
+    /// delivery, hill; see `simrod xil`); one of --profile, --profile-file, --cycle.
+    #[arg(long, value_name = "NAME", value_parser = parse_cycle, group = "ProfileSource",
+          conflicts_with_all = ["throttle_scale", "load_scale"])]
+    pub cycle: Option<Cycle>,
+
+    #[command(flatten)]
+    pub looping: LoopArgs,
+
+    /// K: refuse a closed loop whose delay margin is below K x its loop delay. 3 by
+    /// default: the margin is found on one cycle and is an upper estimate near the
+    /// crossing (simrod_xdt::margin), and the RT platform's delay jitters; 3x leaves
+    /// room for both (assumed, a common safety factor on dead time).
+    #[arg(long, value_name = "K", default_value_t = 3.0, value_parser = parse_factor, requires = "cycle")]
+    pub delay_safety: f64,
 
     /// Step [µs], 10..=10000. 100 resolves the 2 kHz torque-flange mode the flange and
     /// coupling limits need (126 µs at most).
@@ -130,10 +154,37 @@ pub fn parse_confidence(s: &str) -> Result<f64, String> {
     }
 }
 
+/// `--delay-safety` value: a finite factor >= 1.
+pub fn parse_factor(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 1.0 => Ok(v),
+        _ => Err("expected a factor >= 1, e.g. 3".into()),
+    }
+}
+
+/// The test checked: a profile or a closed XiL loop.
+#[derive(Debug, Clone)]
+pub enum CheckTest {
+    Profile(ProfileRun),
+    Xil(XilRun),
+}
+
+impl CheckTest {
+    /// As the check crate runs it.
+    pub fn as_test(&self) -> &dyn TestRun {
+        match self {
+            CheckTest::Profile(p) => p,
+            CheckTest::Xil(x) => x,
+        }
+    }
+}
+
 /// The flags, checked and their files loaded.
 #[derive(Debug, Clone)]
 pub struct CheckConfig {
-    pub test: ProfileRun,
+    pub test: CheckTest,
+    /// K of the delay margin (closed loops).
+    pub delay_safety: f64,
     pub limits: Limits,
     pub uncertainty: Option<Uncertainty>,
     pub samples: u64,
@@ -150,8 +201,8 @@ impl CheckArgs {
     /// The input files the flags name.
     pub fn inputs(&self) -> simrod_io::guard::Inputs {
         let u = &self.uncertainty;
-        self.model
-            .inputs()
+        self.looping
+            .inputs(&self.model)
             .file("--profile-file", self.source.profile_file.as_deref())
             .file("--limits", self.limits.as_deref())
             .file("--uncertainty", u.uncertainty.as_deref())
@@ -173,16 +224,28 @@ impl CheckArgs {
                 return Err(CmdError::Usage(format!("--json and --html are both {}", j.display())));
             }
         }
-        let spec = run_spec(&self.source, self.scales, self.dt_us, &self.model)?;
-        let test = ProfileRun::new(spec.title, &spec.profile, spec.supply_v, spec.config, spec.data.clone());
+        let (test, data) = match self.cycle {
+            Some(cycle) => {
+                let dt_us = check_dt_us(self.dt_us).map_err(|m| CmdError::Usage(format!("--dt-us: {m}")))?;
+                let spec = XilSpec::new(cycle, &self.looping, &self.model, dt_us)?;
+                let data = spec.data.clone();
+                (CheckTest::Xil(XilRun { spec }), data)
+            }
+            None => {
+                let s = run_spec(&self.source, self.scales, self.dt_us, &self.model)?;
+                let data = s.data.clone();
+                (CheckTest::Profile(ProfileRun::new(s.title, &s.profile, s.supply_v, s.config, s.data)), data)
+            }
+        };
         let limits = match &self.limits {
             Some(p) => Limits::load(p).map_err(|e| file_error("--limits", e))?,
             None => Limits::builtin()?,
         };
         let choice = Choice { rates: self.model.params.into(), coupling: self.model.coupling.into() };
-        let uncertainty = self.uncertainty(&test, spec.data.as_deref(), choice)?;
+        let uncertainty = self.uncertainty(test.as_test().config(), data.as_deref(), choice)?;
         Ok(CheckConfig {
             test,
+            delay_safety: self.delay_safety,
             limits,
             uncertainty,
             samples: self.samples,
@@ -202,7 +265,7 @@ impl CheckArgs {
     /// The distributions the uncertainty flag names, resolved against the model.
     fn uncertainty(
         &self,
-        test: &ProfileRun,
+        config: &model_core::Config,
         data: Option<&simrod_io::datadir::ModelData>,
         choice: Choice,
     ) -> Result<Option<Uncertainty>, CmdError> {
@@ -222,8 +285,7 @@ impl CheckArgs {
         if raw.is_empty() {
             return Err(CmdError::Usage(format!("{source}: no uncertain value to draw")));
         }
-        let mut r =
-            Uncertainty::resolve(raw, &source, &test.config, data, choice).map_err(CmdError::Usage)?;
+        let mut r = Uncertainty::resolve(raw, &source, config, data, choice).map_err(CmdError::Usage)?;
         r.notes = notes;
         Ok(Some(r))
     }
@@ -249,8 +311,13 @@ fn check_out(flag: &str, p: &std::path::Path) -> Result<(), CmdError> {
     Ok(())
 }
 
-/// Run the check `c` describes (library use: no output written).
+/// Run the check `c` describes (library use: no output written). A closed loop's delay
+/// margin is found first.
 pub fn run(c: &CheckConfig) -> Result<CheckReport, CmdError> {
+    let delay = match &c.test {
+        CheckTest::Xil(x) => Some(delay_check(&x.spec, c.delay_safety)?),
+        CheckTest::Profile(_) => None,
+    };
     let o = CheckOptions {
         limits: &c.limits,
         uncertainty: c.uncertainty.as_ref(),
@@ -260,8 +327,9 @@ pub fn run(c: &CheckConfig) -> Result<CheckReport, CmdError> {
         threads: c.threads,
         progress: !c.quiet,
         set_points: c.set_points,
+        delay,
     };
-    check(&c.test, &o).map_err(|e| match e {
+    check(c.test.as_test(), &o).map_err(|e| match e {
         CheckError::Usage(m) => CmdError::Usage(m),
         CheckError::Runtime(m) => CmdError::Runtime(m),
     })

@@ -13,8 +13,9 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 use model_core::{Channel, Config, Maps};
+use simrod_check::limits::Limits;
 use simrod_io::budget::BudgetArgs;
-use simrod_xdt::margin::{delay_margin, Criterion, Envelope, Found, Outcome};
+use simrod_xdt::margin::{delay_margin, Criterion, Envelope, Found, Margin, Outcome};
 use simrod_xdt::vehicle::{Vehicle, KEYS};
 use simrod_xdt::{Cycle, LoopParams, Timing, XilLoop, XilOutputs};
 
@@ -42,6 +43,26 @@ pub const EXTRA_COLUMNS: [(&str, &str); 8] = [
 /// Bytes a CSV row takes: the simulate row and the extra columns.
 const XIL_ROW_BYTES: f64 = crate::simulate::SIMULATE_ROW_BYTES + 80.0;
 
+/// The closed loop's vehicle and timing, shared by `simrod xil` and `simrod check
+/// --cycle` (each only with a cycle).
+#[derive(Debug, Clone, Args)]
+pub struct LoopArgs {
+    /// Vehicle file, the format of xdt/data/vehicle.toml (`name = number  # comment`);
+    /// keys not given keep the built-in Kyburz DXP's values.
+    #[arg(long, value_name = "FILE.toml", requires = "cycle")]
+    pub vehicle: Option<PathBuf>,
+
+    /// The RT platform's loop delay [ms]: set points computed from a sample reach the
+    /// bench this much later. Whole twin steps, at most 250 of them (250 ms at `xil`'s
+    /// 1 ms, 25 ms at `check`'s 100 µs).
+    #[arg(long, value_name = "D", default_value_t = LoopParams::default().loop_delay_ms, allow_negative_numbers = true, requires = "cycle")]
+    pub loop_delay_ms: f32,
+
+    /// The xDT's sample time [ms], whole ms >= 1 (set points held between samples).
+    #[arg(long, value_name = "T", default_value_t = LoopParams::default().loop_dt_ms, allow_negative_numbers = true, requires = "cycle")]
+    pub loop_dt_ms: f32,
+}
+
 /// Arguments of `simrod xil`.
 #[derive(Debug, Clone, Args)]
 pub struct XilArgs {
@@ -51,22 +72,16 @@ pub struct XilArgs {
     #[arg(long, value_name = "NAME", value_parser = parse_cycle)]
     pub cycle: Cycle,
 
-    /// Vehicle file, the format of xdt/data/vehicle.toml (`name = number  # comment`);
-    /// keys not given keep the built-in Kyburz DXP's values.
-    #[arg(long, value_name = "FILE.toml")]
-    pub vehicle: Option<PathBuf>,
-
-    /// The RT platform's loop delay [ms]: set points computed from a sample reach the
-    /// bench this much later. Whole ms, 0..=250.
-    #[arg(long, value_name = "D", default_value_t = LoopParams::default().loop_delay_ms, allow_negative_numbers = true)]
-    pub loop_delay_ms: f32,
-
-    /// The xDT's sample time [ms], whole ms >= 1 (set points held between samples).
-    #[arg(long, value_name = "T", default_value_t = LoopParams::default().loop_dt_ms, allow_negative_numbers = true)]
-    pub loop_dt_ms: f32,
+    #[command(flatten)]
+    pub looping: LoopArgs,
 
     #[command(flatten)]
     pub model: ModelArgs,
+
+    /// Limits file for the report's table of `check` margins (default: the built-in
+    /// workbench/data/limits.toml).
+    #[arg(long, value_name = "FILE.toml")]
+    pub limits: Option<PathBuf>,
 
     /// Output CSV: every channel, then the vehicle's speed, the target, the cycle's own
     /// target, distance, grade, road torque and the load torques asked; replaced
@@ -137,70 +152,117 @@ fn extra_values(o: &XilOutputs) -> [f32; 8] {
     ]
 }
 
-/// A validated run.
-struct XilSpec {
-    config: Config,
-    vehicle: Vehicle,
-    timing: Timing,
-    supply_v: f32,
-    data: Option<std::sync::Arc<crate::datadir::ModelData>>,
-    title: String,
+/// A validated closed loop: cycle, vehicle, timing and twin (at `config.dt_us`).
+#[derive(Debug, Clone)]
+pub struct XilSpec {
+    pub cycle: Cycle,
+    pub config: Config,
+    pub vehicle: Vehicle,
+    pub timing: Timing,
+    /// [ms] the loop's sample time and delay as given.
+    pub loop_dt_ms: f32,
+    pub loop_delay_ms: f32,
+    pub supply_v: f32,
+    pub data: Option<std::sync::Arc<crate::datadir::ModelData>>,
+    pub title: String,
 }
 
 impl XilSpec {
-    fn maps(&self) -> Result<Maps<'_>, CmdError> {
+    /// The loop `l` describes on `cycle`, with the twin of `model_args` stepped at
+    /// `dt_us` (loop times must be whole steps of it). Every value checked, the loop
+    /// built once.
+    pub fn new(cycle: Cycle, l: &LoopArgs, model_args: &ModelArgs, dt_us: u32) -> Result<Self, CmdError> {
+        let timing = Timing::from_ms(l.loop_dt_ms, l.loop_delay_ms, dt_us).map_err(|m| {
+            CmdError::Usage(format!(
+                "--loop-dt-ms {} --loop-delay-ms {} at a {dt_us} µs twin step: {m}",
+                l.loop_dt_ms, l.loop_delay_ms
+            ))
+        })?;
+        let vehicle = match &l.vehicle {
+            Some(p) => load_vehicle(p).map_err(|e| file_error("--vehicle", e))?,
+            None => Vehicle::default(),
+        };
+        let model = model_args.load()?;
+        if let Some(path) = &model_args.effects {
+            crate::simulate::check_delay(&model.effects, dt_us)
+                .map_err(|m| CmdError::Usage(format!("{}: {m}", path.display())))?;
+        }
+        let title = format!(
+            "xil {}: {} | vehicle {} ({} kg) | loop dt {} ms, delay {} ms | supply {} V | {}",
+            cycle.name(),
+            cycle.description(),
+            l.vehicle.as_deref().map_or("built-in DXP".into(), |p| p.display().to_string()),
+            vehicle.mass_kg,
+            l.loop_dt_ms,
+            l.loop_delay_ms,
+            model.supply_v,
+            model_args.describe()
+        );
+        let spec = XilSpec {
+            cycle,
+            config: model.config(dt_us, model.effects),
+            vehicle,
+            timing,
+            loop_dt_ms: l.loop_dt_ms,
+            loop_delay_ms: l.loop_delay_ms,
+            supply_v: model.supply_v,
+            data: model.data.clone(),
+            title,
+        };
+        spec.run(spec.maps()?, &spec.config)?; // the checks, before any output
+        Ok(spec)
+    }
+
+    /// The twin's maps (`--data-dir`'s, or the built-in ones).
+    pub fn maps(&self) -> Result<Maps<'_>, CmdError> {
         match &self.data {
             None => Ok(Maps::builtin()),
             Some(d) => d.maps().map_err(|e| CmdError::Usage(format!("--data-dir: {e}"))),
         }
     }
 
-    fn run<'a>(&self, maps: Maps<'a>, cycle: Cycle, timing: Timing) -> Result<XilLoop<'a>, CmdError> {
+    /// The loop on `maps` with the twin's configuration `config` (the spec's, or a
+    /// Monte Carlo sample's).
+    pub fn run<'a>(&self, maps: Maps<'a>, config: &Config) -> Result<XilLoop<'a>, CmdError> {
         let tuning = LoopParams::default().tuning;
-        XilLoop::new(&self.config, maps, &self.vehicle, &tuning, cycle.route(), timing, self.supply_v)
+        XilLoop::new(config, maps, &self.vehicle, &tuning, self.cycle.route(), self.timing, self.supply_v)
             .map_err(|e| CmdError::Usage(format!("the XiL loop cannot be built: {e:?}")))
+    }
+
+    /// The loop's delay margin on its cycle, found at the bench's 1 ms twin step
+    /// ([`XIL_DT_US`], as `simrod xil --margin`; the delay line holds 250 ms there)
+    /// whatever the spec's step: `(margin, [ms] per twin step of the search)`.
+    pub fn margin(&self) -> Result<(Margin, f64), CmdError> {
+        let period = Timing::from_ms(self.loop_dt_ms, 0.0, XIL_DT_US)
+            .map_err(|m| CmdError::Usage(format!("--loop-dt-ms {}: {m}", self.loop_dt_ms)))?
+            .period;
+        let config = Config { dt_us: XIL_DT_US, ..self.config };
+        let m = delay_margin(
+            &config,
+            self.maps()?,
+            &self.vehicle,
+            &LoopParams::default().tuning,
+            self.cycle.route(),
+            period,
+            self.supply_v,
+            Criterion::default(),
+        )
+        .map_err(|e| CmdError::Usage(format!("the XiL loop cannot be built: {e:?}")))?;
+        Ok((m, f64::from(XIL_DT_US) * 1e-3))
+    }
+}
+
+impl LoopArgs {
+    /// The input files the arguments name.
+    pub fn inputs(&self, model: &ModelArgs) -> simrod_io::guard::Inputs {
+        model.inputs().file("--vehicle", self.vehicle.as_deref())
     }
 }
 
 impl XilArgs {
     /// The input files the arguments name.
     pub fn inputs(&self) -> simrod_io::guard::Inputs {
-        self.model.inputs().file("--vehicle", self.vehicle.as_deref())
-    }
-
-    fn spec(&self) -> Result<XilSpec, CmdError> {
-        let timing = Timing::from_ms(self.loop_dt_ms, self.loop_delay_ms, XIL_DT_US).map_err(|m| {
-            CmdError::Usage(format!(
-                "--loop-dt-ms {} --loop-delay-ms {}: {m}",
-                self.loop_dt_ms, self.loop_delay_ms
-            ))
-        })?;
-        let vehicle = match &self.vehicle {
-            Some(p) => load_vehicle(p).map_err(|e| file_error("--vehicle", e))?,
-            None => Vehicle::default(),
-        };
-        let model = self.model.load()?;
-        let title = format!(
-            "xil {}: {} | vehicle {} ({} kg) | loop dt {} ms, delay {} ms | supply {} V | {}",
-            self.cycle.name(),
-            self.cycle.description(),
-            self.vehicle.as_deref().map_or("built-in DXP".into(), |p| p.display().to_string()),
-            vehicle.mass_kg,
-            self.loop_dt_ms,
-            self.loop_delay_ms,
-            model.supply_v,
-            self.model.describe()
-        );
-        let spec = XilSpec {
-            config: model.config(XIL_DT_US, model.effects),
-            vehicle,
-            timing,
-            supply_v: model.supply_v,
-            data: model.data.clone(),
-            title,
-        };
-        spec.run(spec.maps()?, self.cycle, timing)?; // the checks, before any output
-        Ok(spec)
+        self.looping.inputs(&self.model).file("--limits", self.limits.as_deref())
     }
 }
 
@@ -360,7 +422,8 @@ impl XilReport {
     }
 }
 
-fn outcome_text(o: &Outcome) -> String {
+/// What a run judged by the instability criterion did, in words.
+pub fn outcome_text(o: &Outcome) -> String {
     match o {
         Outcome::Stable => "stable".into(),
         Outcome::Growing { at_s, growth } => format!("growing oscillation at {at_s:.1} s ({growth:.0}x)"),
@@ -380,9 +443,13 @@ pub fn execute(args: &XilArgs) -> Result<(), CmdError> {
         args.inputs().check("--out", out).map_err(CmdError::Usage)?;
         check_out_path(out)?;
     }
-    let spec = args.spec()?;
+    let spec = XilSpec::new(args.cycle, &args.looping, &args.model, XIL_DT_US)?;
+    let limits = match &args.limits {
+        Some(p) => Limits::load(p).map_err(|e| file_error("--limits", e))?,
+        None => Limits::builtin()?,
+    };
     let maps = spec.maps()?;
-    let lp = spec.run(maps, args.cycle, spec.timing)?;
+    let lp = spec.run(maps, &spec.config)?;
     if let Some(out) = &args.out {
         check_run_size(out, lp.total_steps() as f64, XIL_DT_US, &args.budget, XIL_ROW_BYTES, 0.0)?;
     }
@@ -403,27 +470,17 @@ pub fn execute(args: &XilArgs) -> Result<(), CmdError> {
         None => run(lp, None).map_err(|e| runtime(e, "the run"))?,
     };
     let mut text = report.render(&spec.title);
+    text.push_str(&crate::xil_run::limits_table(&args.cycle, &args.looping, &args.model, &limits)?);
     if args.margin {
-        let tuning = LoopParams::default().tuning;
-        let m = delay_margin(
-            &spec.config,
-            maps,
-            &spec.vehicle,
-            &tuning,
-            args.cycle.route(),
-            spec.timing.period,
-            spec.supply_v,
-            Criterion::default(),
-        )
-        .map_err(|e| CmdError::Usage(format!("the XiL loop cannot be built: {e:?}")))?;
-        let ms = |steps: u32| f64::from(steps) * f64::from(XIL_DT_US) * 1e-3;
+        let (m, step_ms) = spec.margin()?;
+        let ms = |steps: u32| f64::from(steps) * step_ms;
         let line = match (m.stable_steps, m.unstable) {
             (None, _) => "  delay margin: none, the loop is unstable without delay".to_string(),
             (Some(d), None) => format!("  delay margin: at least {} ms (the delay line's end)", ms(d)),
             (Some(d), Some((u, v))) => format!(
                 "  delay margin: {} ms ({:.1}x the loop delay); at {} ms: {} ({} runs, criterion: see simrod_xdt::margin)",
                 ms(d),
-                ms(d) / f64::from(args.loop_delay_ms).max(1e-9),
+                ms(d) / f64::from(spec.loop_delay_ms).max(1e-9),
                 ms(u),
                 outcome_text(&v.outcome),
                 m.runs

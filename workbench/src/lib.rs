@@ -35,3 +35,4 @@ pub mod history;
 pub mod iterate;
 pub mod simulate;
 pub mod summary;
+pub mod xil_run;

@@ -58,6 +58,7 @@ fn main() -> Result<(), String> {
         threads,
         progress: false,
         set_points: false,
+        delay: None,
     };
     let t = Instant::now();
     let r = check(&test, &o).map_err(|e| format!("{e:?}"))?;

@@ -18,6 +18,7 @@
 //! The test is approved when every limit is inside or safe.
 
 pub mod binomial;
+pub mod delay;
 pub mod limits;
 pub mod monitor;
 pub mod montecarlo;
@@ -31,6 +32,7 @@ use std::time::Instant;
 
 use simrod_io::progress::Progress;
 
+use delay::DelayMargin;
 use limits::{Limit, Limits};
 use monitor::{evaluate, LimitRun};
 use montecarlo::Outcome;
@@ -55,6 +57,8 @@ pub struct CheckOptions<'a> {
     pub progress: bool,
     /// Search the set points that keep crossed limits inside.
     pub set_points: bool,
+    /// A closed loop's delay margin, a condition of approval (found by the caller).
+    pub delay: Option<DelayMargin>,
 }
 
 /// What a check found out about one limit.
@@ -167,6 +171,10 @@ pub struct CheckReport {
     pub limits: Vec<LimitReport>,
     /// Per knob, what keeps every failing limit inside at once.
     pub set_point_all: Option<[SetPoint; 2]>,
+    /// Why the set-point search does not apply to the test, if it does not.
+    pub no_set_points: Option<String>,
+    /// The closed loop's delay margin, when the test is one.
+    pub delay: Option<DelayMargin>,
     pub approved: bool,
     pub threads: usize,
     pub timing: Timing,
@@ -221,7 +229,8 @@ pub fn check(test: &dyn TestRun, o: &CheckOptions<'_>) -> Result<CheckReport, Ch
     let t2 = Instant::now();
     let mut set_point_all = None;
     let wanted: Vec<usize> = (0..reports.len()).filter(|&i| !reports[i].verdict.passes()).collect();
-    if o.set_points && !wanted.is_empty() {
+    let no_set_points = test.no_set_points();
+    if o.set_points && no_set_points.is_none() && !wanted.is_empty() {
         let tightened: Vec<Limit> = reports.iter().map(|r| r.limit.tightened(r.spread)).collect();
         let (found, all) =
             setpoint::search(test, &tightened, &wanted, o.threads).map_err(CheckError::Runtime)?;
@@ -232,7 +241,8 @@ pub fn check(test: &dyn TestRun, o: &CheckOptions<'_>) -> Result<CheckReport, Ch
     }
     let set_points_s = t2.elapsed().as_secs_f64();
 
-    let approved = reports.iter().all(|r| r.verdict.passes());
+    let approved =
+        reports.iter().all(|r| r.verdict.passes()) && o.delay.as_ref().is_none_or(DelayMargin::passes);
     Ok(CheckReport {
         title: test.title(),
         limits_source: o.limits.source.clone(),
@@ -260,6 +270,8 @@ pub fn check(test: &dyn TestRun, o: &CheckOptions<'_>) -> Result<CheckReport, Ch
         }),
         limits: reports,
         set_point_all,
+        no_set_points,
+        delay: o.delay.clone(),
         approved,
         threads: o.threads,
         timing: Timing { nominal_s, monte_carlo_s, set_points_s },

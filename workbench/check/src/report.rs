@@ -10,6 +10,7 @@ use simrod_report::svg::{esc, line_chart, Series};
 use simrod_report::table::columns;
 use simrod_report::{num, pct};
 
+use crate::delay::DelayMargin;
 use crate::limits::{Limit, Rule};
 use crate::monitor::{AT_LIMIT, BINS};
 use crate::run::Knob;
@@ -131,41 +132,14 @@ pub fn render(r: &CheckReport) -> String {
         }
     }
     o.push('\n');
-    let mut rows = vec![vec![
-        "limit".to_string(),
-        "rule".into(),
-        "peak".into(),
-        "margin".into(),
-        "margin %".into(),
-        "at [s]".into(),
-        "where".into(),
-        "verdict".into(),
-    ]];
-    if r.mc.is_some() {
-        rows[0].push(format!("P(violation) [{} interval]", pct(r.confidence)));
-        rows[0].push("worst case seen".into());
+    o.push_str(&table(r));
+    if let Some(d) = &r.delay {
+        let _ = writeln!(o, "\n{}", d.text());
     }
-    for l in &r.limits {
-        let n = &l.nominal;
-        let mut row = vec![
-            l.limit.id.clone(),
-            l.limit.describe(),
-            format!("{} {}", num(n.peak), l.limit.unit),
-            num(n.margin),
-            margin_pct(l, n.margin),
-            format!("{:.3}", n.t_s),
-            l.phase.clone(),
-            verdict_text(l),
-        ];
-        if r.mc.is_some() {
-            row.push(probability(l));
-            row.push(worst_case(l));
-        }
-        rows.push(row);
-    }
-    o.push_str(&columns(&rows, &[0, 1, 2, 6, 7, 8, 9]));
     let failing: Vec<&LimitReport> = r.failing().collect();
-    if !failing.is_empty() {
+    if let (Some(why), false) = (&r.no_set_points, failing.is_empty()) {
+        let _ = writeln!(o, "\nSet points: not searched, {why}.");
+    } else if !failing.is_empty() {
         let _ = writeln!(
             o,
             "\nSet points that keep them inside (nominal model; the Monte Carlo's spread allowed for):"
@@ -200,6 +174,44 @@ pub fn render(r: &CheckReport) -> String {
     o
 }
 
+/// The table of every limit: rule, peak, margin, when, where, verdict (and the Monte
+/// Carlo's columns when there is one).
+pub fn table(r: &CheckReport) -> String {
+    let mut rows = vec![vec![
+        "limit".to_string(),
+        "rule".into(),
+        "peak".into(),
+        "margin".into(),
+        "margin %".into(),
+        "at [s]".into(),
+        "where".into(),
+        "verdict".into(),
+    ]];
+    if r.mc.is_some() {
+        rows[0].push(format!("P(violation) [{} interval]", pct(r.confidence)));
+        rows[0].push("worst case seen".into());
+    }
+    for l in &r.limits {
+        let n = &l.nominal;
+        let mut row = vec![
+            l.limit.id.clone(),
+            l.limit.describe(),
+            format!("{} {}", num(n.peak), l.limit.unit),
+            num(n.margin),
+            margin_pct(l, n.margin),
+            format!("{:.3}", n.t_s),
+            l.phase.clone(),
+            verdict_text(l),
+        ];
+        if r.mc.is_some() {
+            row.push(probability(l));
+            row.push(worst_case(l));
+        }
+        rows.push(row);
+    }
+    columns(&rows, &[0, 1, 2, 6, 7, 8, 9])
+}
+
 /// `APPROVED: ...` or `NOT APPROVED: ...`, one line.
 pub fn verdict_line(r: &CheckReport) -> String {
     let failing: Vec<String> = r
@@ -216,8 +228,11 @@ pub fn verdict_line(r: &CheckReport) -> String {
             )
         })
         .collect();
+    let delay = r.delay.as_ref().filter(|d| !d.passes()).map(|d| d.text());
+    let failing: Vec<String> = failing.into_iter().chain(delay).collect();
     if failing.is_empty() {
-        format!("APPROVED: all {} limits inside", r.limits.len())
+        let delay = r.delay.as_ref().map_or(String::new(), |d| format!("; {}", d.text()));
+        format!("APPROVED: all {} limits inside{delay}", r.limits.len())
     } else {
         format!("NOT APPROVED: {}", failing.join("; "))
     }
@@ -244,7 +259,8 @@ fn set_point_json(s: SetPoint) -> Value {
 /// `{"test", "limits_file", "dt_us", "duration_s", "scales", "flange_mode_hz",
 /// "confidence", "monte_carlo": {...} | null, "limits": [{"id", "name", "quantity",
 /// "unit", "rule", "origin", "assumed", "nominal": {...}, "monte_carlo": {...} | null,
-/// "verdict", "set_points": {"throttle", "load"} | null}], "approved", "exit_code",
+/// "verdict", "set_points": {"throttle", "load"} | null}], "set_point_all",
+/// "set_points_not_applicable", "delay_margin": {...} | null, "approved", "exit_code",
 /// "threads", "timing_s"}`. Non-finite numbers are `null`.
 pub fn to_json(r: &CheckReport) -> Value {
     let limits: Vec<Value> = r
@@ -303,6 +319,8 @@ pub fn to_json(r: &CheckReport) -> Value {
         })),
         "limits": limits,
         "set_point_all": r.set_point_all.map(|s| json!({"throttle": set_point_json(s[0]), "load": set_point_json(s[1])})),
+        "set_points_not_applicable": r.no_set_points,
+        "delay_margin": r.delay.as_ref().map(DelayMargin::to_json),
         "approved": r.approved,
         "exit_code": if r.approved { 0 } else { 1 },
         "threads": r.threads,

@@ -78,6 +78,12 @@ pub trait TestRun: Sync {
     /// diverges (non-finite outputs) is an error naming the time.
     fn run(&self, config: &Config, scales: Scales, sink: &mut dyn StepSink) -> Result<(), String>;
 
+    /// Why the set-point search does not apply (`None`: it does). A closed loop has no
+    /// scales to lower: its driver sets the throttle and its road the load.
+    fn no_set_points(&self) -> Option<String> {
+        None
+    }
+
     /// Steps of the run.
     fn steps(&self) -> u64 {
         self.duration_us().div_ceil(u64::from(self.config().dt_us.max(1)))
