@@ -22,7 +22,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use model_core::effects::{self as fxdecl, EffectKeyError, EFFECTS};
+use model_core::effects::{self as fxdecl, Cause, EffectKeyError, ParamDecl, EFFECTS};
 use model_core::Effects;
 use model_data::effects::{parse_effect_file, Pos};
 
@@ -108,9 +108,15 @@ pub fn format_effects(fx: &Effects) -> Result<String, String> {
 pub fn summarize_effects(fx: &Effects) -> String {
     let mut parts = Vec::new();
     for e in EFFECTS.iter().filter(|e| is_on(fx, e)) {
+        // A per-channel effect (the measurement chain) names only the channels it is on.
+        let shown = |p: &&ParamDecl| {
+            e.cause != Cause::PerParameter
+                || get_param(fx, e.id, p.name) != get_param(&Effects::NONE, e.id, p.name)
+        };
         let values: Vec<String> = e
             .params
             .iter()
+            .filter(shown)
             .filter_map(|p| get_param(fx, e.id, p.name).map(|v| format!("{}={v}", p.name)))
             .collect();
         parts.push(format!("{}({})", e.id, values.join(", ")));
