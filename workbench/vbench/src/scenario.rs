@@ -162,26 +162,30 @@ pub const MOVED_SHARE: f64 = 0.01;
 /// The measured channels on which `with` differs from `without` by at least
 /// [`MOVED_SHARE`] of the channel's span (RMS).
 pub fn moved_channels(with: &Recorded, without: &Recorded) -> Vec<String> {
-    let mut out = Vec::new();
-    for (i, c) in MEASURED.iter().enumerate() {
-        let (Some(a), Some(b)) = (with.measured.get(i), without.measured.get(i)) else { continue };
-        let n = a.len().min(b.len());
-        if n == 0 {
-            continue;
-        }
-        let (mut lo, mut hi, mut sq) = (f64::INFINITY, f64::NEG_INFINITY, 0.0);
-        for k in 0..n {
-            let (x, y) = (f64::from(a[k]), f64::from(b[k]));
-            lo = lo.min(x).min(y);
-            hi = hi.max(x).max(y);
-            sq += (x - y) * (x - y);
-        }
-        let rms = (sq / n as f64).sqrt();
-        if rms > 0.0 && rms >= MOVED_SHARE * (hi - lo) {
-            out.push(c.name().to_owned());
-        }
+    MEASURED
+        .iter()
+        .zip(with.measured.iter().zip(&without.measured))
+        .filter(|(_, (a, b))| is_moved(a, b))
+        .map(|(c, _)| c.name().to_owned())
+        .collect()
+}
+
+/// Whether series `with` differs from `without` by at least [`MOVED_SHARE`] of their
+/// joint span (RMS over their common length).
+pub fn is_moved<T: Copy + Into<f64>>(with: &[T], without: &[T]) -> bool {
+    let n = with.len().min(without.len());
+    if n == 0 {
+        return false;
     }
-    out
+    let (mut lo, mut hi, mut sq) = (f64::INFINITY, f64::NEG_INFINITY, 0.0);
+    for (a, b) in with.iter().zip(without) {
+        let (x, y): (f64, f64) = ((*a).into(), (*b).into());
+        lo = lo.min(x).min(y);
+        hi = hi.max(x).max(y);
+        sq += (x - y) * (x - y);
+    }
+    let rms = (sq / n as f64).sqrt();
+    rms > 0.0 && rms >= MOVED_SHARE * (hi - lo)
 }
 
 /// The truth file of a case (TOML).
