@@ -16,6 +16,7 @@ use std::fs;
 use std::time::{Duration, Instant};
 
 use firmware_support as fw;
+use firmware_support::Cursor;
 use host_tests::rt::{self, Summary};
 use model_core::{Builtin, Effects, RateSet, N_CHANNELS};
 use simrod_xdt::{Cycle, Timing, XilLoop, SIGNALS};
@@ -25,34 +26,6 @@ const QEMU_TIMEOUT: Duration = Duration::from_secs(600);
 const XIL_MAGIC: &[u8; 8] = b"SRXIL01\0";
 const TWIN_MAGIC: &[u8; 4] = b"TWIN";
 const XIL_FILE: &str = "simrod-xil.bin";
-
-struct Cursor<'a> {
-    b: &'a [u8],
-    pos: usize,
-}
-
-impl Cursor<'_> {
-    fn take(&mut self, n: usize) -> &[u8] {
-        let s = self.b.get(self.pos..self.pos + n).unwrap_or_else(|| {
-            panic!("{XIL_FILE} truncated at byte {} (wanted {n} more of {})", self.pos, self.b.len())
-        });
-        self.pos += n;
-        s
-    }
-    fn u16(&mut self) -> u16 {
-        u16::from_le_bytes(self.take(2).try_into().unwrap())
-    }
-    fn u32(&mut self) -> u32 {
-        u32::from_le_bytes(self.take(4).try_into().unwrap())
-    }
-    fn u64(&mut self) -> u64 {
-        u64::from_le_bytes(self.take(8).try_into().unwrap())
-    }
-    fn magic(&mut self, m: &[u8], what: &str) {
-        let at = self.pos;
-        assert_eq!(self.take(m.len()), m, "{XIL_FILE}: expected {what} at byte {at}");
-    }
-}
 
 /// One closed-loop run of the file, compared with the host's loop step by step; its
 /// instructions per step.
@@ -112,7 +85,7 @@ fn firmware_xil_loop_matches_host_bit_for_bit() {
     let bytes = fs::read(cwd.join(XIL_FILE)).unwrap_or_else(|e| panic!("{XIL_FILE}: {e}"));
     eprintln!("QEMU XiL run {:.1} s, {:.1} MB", run.wall.as_secs_f64(), bytes.len() as f64 / 1e6);
 
-    let mut c = Cursor { b: &bytes, pos: 0 };
+    let mut c = Cursor::new(&bytes, XIL_FILE);
     c.magic(XIL_MAGIC, "the file magic");
     assert_eq!(usize::from(c.u16()), N_CHANNELS, "channels");
     assert_eq!(usize::from(c.u16()), SIGNALS.len(), "xDT values");

@@ -854,14 +854,14 @@ mod tests {
             for p in e.params {
                 let mut fx = Effects::NONE;
                 let above = p.range.max + 0.5 * p.range.max.abs() + 1.0;
-                fx.set(e.id, p.name, above).unwrap();
+                assert_eq!(fx.set(e.id, p.name, above), Ok(()));
                 let bad = fx.check().unwrap_err();
                 assert_eq!((bad.effect.id, bad.param.name, bad.value), (e.id, p.name, above));
                 assert_eq!(fx.validate(), Err(e.id));
                 for (end, inclusive) in
                     [(p.range.min, p.range.min_inclusive), (p.range.max, p.range.max_inclusive)]
                 {
-                    fx.set(e.id, p.name, end).unwrap();
+                    assert_eq!(fx.set(e.id, p.name, end), Ok(()));
                     assert_eq!(fx.check().is_ok(), inclusive, "{}.{} = {end}", e.id, p.name);
                 }
             }

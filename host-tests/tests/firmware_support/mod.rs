@@ -225,37 +225,47 @@ pub struct Trace {
     pub runs: Vec<TraceRun>,
 }
 
-struct Cursor<'a> {
+/// Reads a little-endian record file front to back; a short file or a wrong magic
+/// fails the test naming the file (`what`) and the byte.
+pub struct Cursor<'a> {
     b: &'a [u8],
-    pos: usize,
+    /// Bytes read so far.
+    pub pos: usize,
+    what: &'a str,
 }
 
-impl Cursor<'_> {
-    fn take(&mut self, n: usize) -> &[u8] {
-        let s = self.b.get(self.pos..self.pos + n).unwrap_or_else(|| {
-            panic!("trace truncated at byte {} (wanted {n} more of {})", self.pos, self.b.len())
-        });
+#[allow(dead_code)] // each test binary uses part of it
+impl<'a> Cursor<'a> {
+    pub fn new(b: &'a [u8], what: &'a str) -> Self {
+        Self { b, pos: 0, what }
+    }
+    pub fn take(&mut self, n: usize) -> &[u8] {
+        let (what, pos, len) = (self.what, self.pos, self.b.len());
+        let s = self
+            .b
+            .get(self.pos..self.pos + n)
+            .unwrap_or_else(|| panic!("{what} truncated at byte {pos} (wanted {n} more of {len})"));
         self.pos += n;
         s
     }
-    fn u8(&mut self) -> u8 {
+    pub fn u8(&mut self) -> u8 {
         self.take(1)[0]
     }
-    fn u16(&mut self) -> u16 {
+    pub fn u16(&mut self) -> u16 {
         u16::from_le_bytes(self.take(2).try_into().unwrap())
     }
-    fn u32(&mut self) -> u32 {
+    pub fn u32(&mut self) -> u32 {
         u32::from_le_bytes(self.take(4).try_into().unwrap())
     }
-    fn u64(&mut self) -> u64 {
+    pub fn u64(&mut self) -> u64 {
         u64::from_le_bytes(self.take(8).try_into().unwrap())
     }
-    fn magic(&mut self, m: &[u8], what: &str) {
+    pub fn magic(&mut self, m: &[u8], what: &str) {
         let at = self.pos;
         let got = self.take(m.len()).to_vec();
-        assert_eq!(got, m, "trace: expected {what} at byte {at}");
+        assert_eq!(got, m, "{}: expected {what} at byte {at}", self.what);
     }
-    fn string(&mut self) -> String {
+    pub fn string(&mut self) -> String {
         let n = usize::from(self.u8());
         String::from_utf8(self.take(n).to_vec()).expect("utf-8 name")
     }
@@ -264,7 +274,7 @@ impl Cursor<'_> {
 /// Read and check the structure of a trace file.
 pub fn read_trace(path: &Path) -> Trace {
     let bytes = fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let mut c = Cursor { b: &bytes, pos: 0 };
+    let mut c = Cursor::new(&bytes, "trace");
     c.magic(&protocol::TRACE_MAGIC, "the trace magic");
     let n_channels = usize::from(c.u16());
     let dt_us = c.u32();

@@ -264,7 +264,7 @@ pub fn channel_key(c: Channel) -> String {
 
 /// The measured channel whose key is `key`.
 pub fn channel_from_key(key: &str) -> Option<Channel> {
-    MEASURED.iter().copied().find(|c| channel_key(*c) == key)
+    Channel::from_key(key).filter(|c| MEASURED.contains(c))
 }
 
 fn effect_index(id: &str) -> Option<usize> {
