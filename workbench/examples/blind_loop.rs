@@ -10,9 +10,11 @@
 //! hidden effects from the twin's library, the plant's bench-only physics and the
 //! acquisition's faults; maps perturbed in half the cases; the bench's noise). Two cases
 //! in five are campaigns of 2–5 runs: the same hidden bench on other profiles and scales.
-//! The loop is the user's, through the `simrod` binary: `diagnose RUN... --write-effects`,
-//! then `diagnose --effects <what it wrote>`, up to five rounds, stopping at "nothing
-//! missing", "unexplained" or when nothing new is proposed. Then, per run and channel:
+//! The loop is the user's, through the `simrod` binary: `diagnose RUN... --write-effects
+//! F --write-data D`, then `diagnose --effects F --data-dir D` with what it wrote (an
+//! effect file, and an empirically corrected data directory when the library leaves
+//! error), up to five rounds, stopping at "nothing missing" or when nothing new is
+//! written. Then, per run and channel:
 //!
 //! - the **floor**: the error of the true plant model on the file (the noise-free run of
 //!   the same bench, `--noise none`, against the file);
@@ -25,7 +27,11 @@
 //!   channel, having made no channel worse than 1.15x;
 //! - **miss**: "nothing missing" while a moved channel is above 1.2x its floor;
 //! - **false claim**: a library effect added that is not in the truth, with a moved
-//!   channel left above 1.2x its floor;
+//!   channel left above 1.2x its floor. The truth is the hidden effects and, when the
+//!   maps are perturbed, the twin effects that model a perturbed parameter or map
+//!   exactly (`PERTURBED_TWIN`: a bench whose SuT inertia is 8 % high has
+//!   `inertia_scale.sut = 1.08`); the figure counting only the hidden effects is
+//!   printed too;
 //! - **found**: a hidden library effect that moves a channel is in the final file; its
 //!   95 % interval, in the round that first named it, holds the truth (coverage).
 //!
@@ -77,11 +83,15 @@ struct Outcome {
     honest: bool,
     miss: bool,
     false_claim: Vec<String>,
+    /// The same counting only the hidden effects as the truth (not the perturbation).
+    false_claim_strict: Vec<String>,
     /// Hidden library effects that move a channel: (id, found).
     library: Vec<(String, bool)>,
     /// Coverage of the truth by the 95 % interval: (inside, total).
     coverage: (usize, usize),
     rounds: usize,
+    /// The loop ended with an empirically corrected data directory.
+    empirical: bool,
     last: String,
     seconds: f64,
 }
@@ -154,15 +164,35 @@ fn make_case(dir: &Path, seed: u64) -> Result<Case, String> {
     Ok(Case { seed, scenario, runs, exact, clean })
 }
 
-/// Per run, per channel name: the twin's RMSE with `effects` (`None`: the thesis twin).
-fn twin_errors(dir: &Path, c: &Case, effects: Option<&str>) -> Result<Vec<Vec<(String, f64)>>, String> {
+/// What the loop has added so far: the last effect file and the last model data
+/// directory the diagnosis wrote.
+#[derive(Debug, Clone, Default, PartialEq)]
+struct Added {
+    effects: Option<String>,
+    data: Option<String>,
+}
+
+impl Added {
+    /// The model flags that run the twin with what was added.
+    fn flags(&self) -> Vec<String> {
+        let mut a = Vec::new();
+        if let Some(fx) = &self.effects {
+            a.extend(strings(&["--effects", fx]));
+        }
+        if let Some(d) = &self.data {
+            a.extend(strings(&["--data-dir", d]));
+        }
+        a
+    }
+}
+
+/// Per run, per channel name: the twin's RMSE with what the loop `added`.
+fn twin_errors(dir: &Path, c: &Case, added: &Added) -> Result<Vec<Vec<(String, f64)>>, String> {
     c.runs
         .iter()
         .map(|run| {
             let mut a = strings(&["compare", &run.display().to_string(), "--json", "--no-history"]);
-            if let Some(fx) = effects {
-                a.extend(strings(&["--effects", fx]));
-            }
+            a.extend(added.flags());
             let j: Value = serde_json::from_str(&simrod(dir, &a)?).map_err(|e| e.to_string())?;
             let chans = j["channels"].as_object().ok_or("compare JSON has no channels")?;
             Ok(chans.iter().filter_map(|(k, v)| Some((k.clone(), v["rmse"].as_f64()?))).collect())
@@ -196,35 +226,72 @@ fn floors(c: &Case, names: &[Vec<(String, f64)>]) -> Result<Vec<Vec<(f64, bool)>
         .collect()
 }
 
-/// The loop: diagnose, add what it wrote, again. Returns the rounds' JSON and the last
-/// effect file written.
-fn blind_loop(dir: &Path, c: &Case) -> Result<(Vec<Value>, Option<String>), String> {
+/// The loop: diagnose, add what it wrote (an effect file, an empirically corrected data
+/// directory), again. Returns the rounds' JSON and what was added in the end.
+fn blind_loop(dir: &Path, c: &Case) -> Result<(Vec<Value>, Added), String> {
     let runs: Vec<String> = c.runs.iter().map(|p| p.display().to_string()).collect();
-    let (mut rounds, mut current): (Vec<Value>, Option<String>) = (Vec::new(), None);
+    let (mut rounds, mut added): (Vec<Value>, Added) = (Vec::new(), Added::default());
     for k in 1..=ROUNDS {
-        let out = format!("r{k}.toml");
+        let (out, data) = (format!("r{k}.toml"), format!("d{k}"));
         let mut a = strings(&["diagnose"]);
         a.extend(runs.iter().cloned());
-        a.extend(strings(&["--json", "--write-effects", &out]));
-        if let Some(fx) = &current {
-            a.extend(strings(&["--effects", fx]));
-        }
+        a.extend(strings(&["--json", "--write-effects", &out, "--write-data", &data]));
+        a.extend(added.flags());
         let j: Value = serde_json::from_str(&simrod(dir, &a)?).map_err(|e| e.to_string())?;
         let kind = j["kind"].as_str().unwrap_or("").to_owned();
-        let wrote = j.get("effects_written").is_some();
+        let wrote_fx = j.get("effects_written").is_some();
+        let wrote_data = j.get("data_written").is_some();
         rounds.push(j);
-        if !wrote || kind == "nothing_missing" || kind == "unexplained" {
+        if kind == "nothing_missing" || !(wrote_fx || wrote_data) {
             break;
         }
-        let same = current.as_ref().is_some_and(|prev| {
-            std::fs::read_to_string(dir.join(prev)).ok() == std::fs::read_to_string(dir.join(&out)).ok()
-        });
-        if same {
+        let same_fx = !wrote_fx
+            || added.effects.as_ref().is_some_and(|prev| {
+                std::fs::read_to_string(dir.join(prev)).ok() == std::fs::read_to_string(dir.join(&out)).ok()
+            });
+        if same_fx && !wrote_data {
             break;
         }
-        current = Some(out);
+        if wrote_fx {
+            added.effects = Some(out);
+        }
+        if wrote_data {
+            added.data = Some(data);
+        }
     }
-    Ok((rounds, current))
+    Ok((rounds, added))
+}
+
+/// The twin effect that models each data item a map perturbation changes (the truth
+/// file's `perturbation` names): the effect changes exactly that quantity in the model,
+/// so claiming it describes part of the truth (a bench whose SuT inertia is 8 % above
+/// the identified value *has* `inertia_scale.sut = 1.08`).
+const PERTURBED_TWIN: [(&str, &str); 9] = [
+    ("axle_friction_L", "axle_friction_scale"),
+    ("axle_friction_R", "axle_friction_scale"),
+    ("sut_inertia", "inertia_scale"),
+    ("load_inertia_l", "inertia_scale"),
+    ("load_inertia_r", "inertia_scale"),
+    ("connector_resistance", "connector_resistance"),
+    ("coupling_stiffness_identified", "coupling_stiffness"),
+    ("coupling_damping", "coupling_damping"),
+    ("ident.", "inverter_rate_scale"),
+];
+
+/// The twin effects the truth file's perturbation justifies ([`PERTURBED_TWIN`]).
+fn perturbed_ids(dir: &Path) -> BTreeSet<String> {
+    let text = std::fs::read_to_string(dir.join("exact0.truth.toml")).unwrap_or_default();
+    let truth: toml::Value = toml::from_str(&text).unwrap_or(toml::Value::Table(Default::default()));
+    let names: Vec<String> = truth
+        .get("perturbation")
+        .and_then(|p| p.as_array())
+        .map(|a| a.iter().filter_map(|i| i.get("name")?.as_str().map(str::to_owned)).collect())
+        .unwrap_or_default();
+    PERTURBED_TWIN
+        .iter()
+        .filter(|(item, _)| names.iter().any(|n| n.starts_with(item)))
+        .map(|(_, fx)| fx.to_string())
+        .collect()
 }
 
 /// Effect ids in an effect file.
@@ -272,13 +339,10 @@ fn class_of(c: &Case) -> String {
 /// Judge case `c` after its loop.
 fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
     let t0 = Instant::now();
-    let before = twin_errors(dir, c, None)?;
+    let before = twin_errors(dir, c, &Added::default())?;
     let floor = floors(c, &before)?;
-    let (rounds, last) = blind_loop(dir, c)?;
-    let after = match &last {
-        Some(f) => twin_errors(dir, c, Some(f))?,
-        None => before.clone(),
-    };
+    let (rounds, added) = blind_loop(dir, c)?;
+    let after = if added == Added::default() { before.clone() } else { twin_errors(dir, c, &added)? };
     let last_j = rounds.last().cloned().unwrap_or(Value::Null);
     let kind = last_j["kind"].as_str().unwrap_or("").to_owned();
     let located = last_j["unexplained"]["channel"].as_str().map(str::to_owned);
@@ -303,10 +367,18 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
     let located_on_moved = located.as_ref().is_some_and(|ch| moved.contains(ch));
     let honest = (moved_ok && !worse)
         || (matches!(kind.as_str(), "unexplained" | "partial") && located_on_moved && !worse);
-    let truth = truth_ids(&c.scenario);
-    let claimed = ids_in(dir, last.as_deref());
-    let false_claim: Vec<String> =
-        if any_moved_high { claimed.difference(&truth).cloned().collect() } else { Vec::new() };
+    let hidden = truth_ids(&c.scenario);
+    let mut truth = hidden.clone();
+    truth.extend(perturbed_ids(dir));
+    let claimed = ids_in(dir, added.effects.as_deref());
+    let unjustified = |t: &BTreeSet<String>| -> Vec<String> {
+        if any_moved_high {
+            claimed.difference(t).cloned().collect()
+        } else {
+            Vec::new()
+        }
+    };
+    let (false_claim, false_claim_strict) = (unjustified(&truth), unjustified(&hidden));
     let mut coverage = (0, 0);
     let library: Vec<(String, bool)> = c
         .scenario
@@ -334,9 +406,11 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         honest,
         miss: kind == "nothing_missing" && any_moved_high,
         false_claim,
+        false_claim_strict,
         library,
         coverage,
         rounds: rounds.len(),
+        empirical: added.data.is_some(),
         last: last_j["verdict"].as_str().unwrap_or("").chars().take(160).collect(),
         seconds: t0.elapsed().as_secs_f64(),
     })
@@ -396,7 +470,7 @@ fn main() {
                     o.class,
                     case.runs.len(),
                     if o.honest { "yes" } else { "NO" },
-                    o.rounds,
+                    format!("{}{}", o.rounds, if o.empirical { "E" } else { "" }),
                     o.seconds,
                     if o.miss { "[MISS] " } else { "" },
                     if o.false_claim.is_empty() {
@@ -445,6 +519,10 @@ fn summary(o: &[Outcome]) -> bool {
     let (cin, ctot) = o.iter().fold((0, 0), |a, x| (a.0 + x.coverage.0, a.1 + x.coverage.1));
     println!("\nhonest: {}  (target >= 95 %)", pct(honest, total));
     println!("false claims: {}  (target <= 2 %)", pct(false_claims, total));
+    println!(
+        "  counting a perturbed parameter's own effect as false too: {}",
+        pct(count(&|x| !x.false_claim_strict.is_empty()), total)
+    );
     println!("misses: {}", count(&|x| x.miss));
     println!("library effects found, single runs: {}  (target >= 95 %)", pct(fs, ns));
     println!("library effects found, campaigns: {}  (target >= 98 %)", pct(fc, nc));

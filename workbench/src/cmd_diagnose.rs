@@ -61,6 +61,14 @@ How the diagnosis works:
   --speed-window-s, ...): the bench counts encoder pulses in a window centred on each sample
   (0.1 s on the SimRod bench; 0 when the speeds are not window-counted), and the twin's
   speeds are averaged over the same window before they are compared.
+  When the library leaves error (partial, unexplained), an EMPIRICAL correction of the maps
+  is fitted: the maps whose nodes the runs visit (set-point grids from the recorded set
+  points, friction over axle speed), one simulation per node, smoothed, the smoothing and
+  the maps chosen on held-out 2 s blocks, confirmed on the simulator. When it alone removes
+  clearly more than the library's proposal (15 points of the excess, held-out and on the
+  simulator), no library effect is claimed. --write-data DIR writes it as a data directory
+  (the corrected maps labelled EMPIRICAL) for --data-dir: a fitted table, not a physical
+  effect.
   Files with gaps are refused: cut the run at the gap.
   Several runs are a campaign: the twin runs on each with the same effects and every fit is
   joint, so two effects confounded on one run are told apart when another run separates
@@ -91,6 +99,13 @@ pub struct DiagnoseArgs {
     #[arg(long, value_name = "OUT.toml")]
     pub write_effects: Option<PathBuf>,
 
+    /// When no library effect explains the error and an empirical correction of the
+    /// maps is offered: write the model data with the corrected maps (labelled
+    /// EMPIRICAL in their comments) to this directory, for `--data-dir` (or to compile
+    /// into the firmware as model-core/data). Never an input's directory.
+    #[arg(long, value_name = "DIR")]
+    pub write_data: Option<PathBuf>,
+
     /// Mapping file (TOML) renaming/scaling the file's channels to bench names.
     #[arg(long, value_name = "FILE")]
     pub mapping: Option<PathBuf>,
@@ -118,6 +133,7 @@ impl DiagnoseArgs {
             sensors: SensorArgs::default(),
             json: false,
             write_effects: None,
+            write_data: None,
             mapping: None,
             threads: None,
             budget: BudgetArgs::default(),
@@ -226,6 +242,17 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
             args.model.inputs().files("a measurement", &args.meas).file("--mapping", args.mapping.as_deref());
         inputs.check("--write-effects", out).map_err(CmdError::Usage)?;
         check_out_path(out)?;
+    }
+    if let Some(dir) = &args.write_data {
+        let inputs =
+            args.model.inputs().files("a measurement", &args.meas).file("--mapping", args.mapping.as_deref());
+        inputs.check_dir("--write-data", dir).map_err(CmdError::Usage)?;
+        if dir.is_file() {
+            return Err(CmdError::Usage(format!(
+                "--write-data {}: a file, expected a directory",
+                dir.display()
+            )));
+        }
     }
     let load_opts = LoadOptions {
         mapping: args.mapping.as_deref().map(Mapping::load).transpose()?,
@@ -511,6 +538,9 @@ pub fn render(d: &Diagnosed) -> String {
             None => o.push_str("  no built-in profile separates them\n"),
         }
     }
+    if let Some(e) = &g.empirical {
+        o.push_str(&render_empirical(e));
+    }
     if let Some(loc) = &g.unexplained {
         o.push_str(&format!(
             "UNEXPLAINED: {} holds {} of the excess error, worst at {:.1}–{:.1} s\n",
@@ -526,6 +556,47 @@ pub fn render(d: &Diagnosed) -> String {
         d.timing.0,
         d.timing.1
     ));
+    o
+}
+
+/// The empirical correction: the maps, what it removes per channel, or why it is refused.
+fn render_empirical(e: &diagnose::empirical::Empirical) -> String {
+    let mut o = String::from("\nEMPIRICAL CORRECTION (a fitted table, not a physical effect)\n");
+    for m in &e.maps {
+        o.push_str(&format!(
+            "  {:<24} {:>3} of {:>3} nodes changed, RMS {} max {} ({})\n",
+            m.file,
+            m.nodes.0,
+            m.nodes.1,
+            num(m.rms_change),
+            num(m.max_change),
+            m.quantity
+        ));
+    }
+    o.push_str(&format!(
+        "  removes {} of the remaining excess error on held-out data, {} on the whole run (roughness weight {:.2e})\n",
+        pct(e.heldout_reduction),
+        pct(e.confirmed_reduction),
+        e.lambda
+    ));
+    for c in e
+        .channels
+        .iter()
+        .filter(|c| c.rmse_confirmed.is_some_and(|a| (a - c.rmse_before).abs() > 0.02 * c.rmse_before))
+    {
+        let after = c.rmse_confirmed.unwrap_or(c.rmse_before);
+        o.push_str(&format!(
+            "    {:<14} RMSE {} -> {} ({})\n",
+            c.channel,
+            num(c.rmse_before),
+            num(after),
+            change_pct(c.rmse_before, after)
+        ));
+    }
+    match &e.refused {
+        Some(why) => o.push_str(&format!("  not offered: {why}\n")),
+        None => o.push_str("  write it with --write-data DIR and run the twin with --data-dir DIR\n"),
+    }
     o
 }
 
@@ -581,6 +652,7 @@ pub fn to_json(d: &Diagnosed) -> Value {
         "unexplained": g.unexplained,
         "noise": obj(g.noise.iter().map(|(n, v)| (n.to_string(), json!(v))).collect()),
         "proposed_effects": d.proposal().ok().and_then(|fx| format_effects(&fx).ok()),
+        "empirical": g.empirical,
         "setup": {
             "samples": s.samples,
             "duration_s": s.duration_s,
@@ -608,16 +680,36 @@ pub fn write_proposal(d: &Diagnosed, out: &Path) -> Result<Result<(), String>, C
     }
 }
 
+/// Write the empirically corrected model data to `dir`; `Ok(Err(why))` when none is
+/// offered.
+pub fn write_correction(d: &Diagnosed, dir: &Path) -> Result<Result<(), String>, CmdError> {
+    let e = d.diagnosis.empirical.as_ref();
+    match e.and_then(|e| e.data.as_ref()) {
+        Some(data) => {
+            data.write(dir).map_err(|e| CmdError::Runtime(format!("--write-data {}: {e}", dir.display())))?;
+            Ok(Ok(()))
+        }
+        None => Ok(Err(match e.and_then(|e| e.refused.clone()) {
+            Some(why) => format!("no empirical correction is offered: {why}"),
+            None => "no empirical correction is offered (only when the library leaves error)".into(),
+        })),
+    }
+}
+
 /// `simrod diagnose`.
 pub fn execute(args: &DiagnoseArgs) -> Result<(), CmdError> {
     let d = run(args)?;
     // Write first, report after: the report says what happened to the file, and a failed
     // write still shows the diagnosis before the error.
     let written = args.write_effects.as_deref().map(|p| (p, write_proposal(&d, p)));
+    let data_written = args.write_data.as_deref().map(|p| (p, write_correction(&d, p)));
     let mut text = if args.json {
         let mut v = to_json(&d);
         if let (Some((p, Ok(Ok(())))), Some(m)) = (&written, v.as_object_mut()) {
             m.insert("effects_written".into(), json!(p.display().to_string()));
+        }
+        if let (Some((p, Ok(Ok(())))), Some(m)) = (&data_written, v.as_object_mut()) {
+            m.insert("data_written".into(), json!(p.display().to_string()));
         }
         let mut s = serde_json::to_string_pretty(&v).map_err(|e| CmdError::Runtime(format!("JSON: {e}")))?;
         s.push('\n');
@@ -626,9 +718,18 @@ pub fn execute(args: &DiagnoseArgs) -> Result<(), CmdError> {
         render(&d)
     };
     let mut result = Ok(());
-    if let Some((p, w)) = written {
+    let data_msg = data_written.map(|(p, w)| {
+        let ok =
+            format!("wrote the empirically corrected model data to {} (use it with --data-dir)", p.display());
+        (p, w, ok)
+    });
+    let fx_msg = written.map(|(p, w)| {
+        let ok = format!("wrote {} ({})", p.display(), summarize_effects(&d.diagnosis.proposed));
+        (p, w, ok)
+    });
+    for (p, w, ok) in fx_msg.into_iter().chain(data_msg) {
         let msg = match w {
-            Ok(Ok(())) => format!("wrote {} ({})", p.display(), summarize_effects(&d.diagnosis.proposed)),
+            Ok(Ok(())) => ok,
             Ok(Err(why)) => format!("{} not written: {why}", p.display()),
             Err(e) => {
                 result = Err(e);

@@ -19,16 +19,22 @@
 //!
 //! This module holds the public types and the orchestration.
 
-use model_core::{Channel, Effects, Params};
+use std::sync::Arc;
+
+use model_core::{Channel, Effects, Params, SetPoints};
+use simrod_io::datadir::ModelData;
 
 use super::confounding::{confounded_groups, Leaders};
+use super::empirical::{correct, Empirical, Inputs as EmpiricalInputs};
 use super::library::ParamSpec;
 use super::preparation::{prepare, Prepared};
 use super::refit::{confirm, refit, Fit};
 use super::selection::{greedy, refit_list, score_effects};
 use super::sensitivities::{sensitivities, Sensitivities};
 use super::uncertainty::parameter_std;
-use super::verdict::{conclude, rank, structure_in, Evidence};
+use super::verdict::{
+    conclude, rank, structure_in, table_beats_library, Evidence, Verdict, PREFER_TABLE_MARGIN,
+};
 
 /// Something that simulates the measured channels for given effects.
 pub trait Twin: Sync {
@@ -57,6 +63,23 @@ pub trait Twin: Sync {
     /// A long run's full output is then held only while it is reduced.
     fn run_every(&self, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
         Ok(self.run(fx)?.into_iter().map(|c| every(c, stride)).collect())
+    }
+
+    /// The model data the twin runs on (its `--data-dir`, or the built-in data), for an
+    /// empirical correction of its maps; `None`: this twin's maps cannot be changed.
+    fn data(&self) -> Option<Arc<ModelData>> {
+        None
+    }
+
+    /// The recorded set points, one per sample (the maps' inputs); empty when unknown.
+    fn set_points(&self) -> Vec<SetPoints> {
+        Vec::new()
+    }
+
+    /// As [`Twin::run_every`] on other model data (an empirically corrected copy).
+    fn run_data(&self, data: &Arc<ModelData>, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
+        let _ = (data, fx, stride);
+        Err("this twin runs on its own data only".into())
     }
 }
 
@@ -269,6 +292,9 @@ pub struct Diagnosis {
     /// The base effects plus the effect to add (for `--write-effects`).
     #[serde(skip)]
     pub proposed: Effects,
+    /// When the library leaves error: an empirical correction of the maps, fitted on
+    /// top of `proposed` (for `--write-data`), or why none is offered.
+    pub empirical: Option<Empirical>,
 }
 
 /// Candidate test profiles to run in simulation, for finding the one that separates
@@ -323,7 +349,7 @@ fn stages(
     let ranking = rank(&cands);
     let group = Leaders { cands: &cands, lin: &lin, fits: &fits, ranking: &ranking };
     let confounded = confounded_groups(&group, &s, o, &p.weights, probe);
-    let v = conclude(&Evidence {
+    let ev = Evidence {
         p: &p,
         s: &s,
         o,
@@ -335,21 +361,56 @@ fn stages(
         set: set.as_ref(),
         ranking: &ranking,
         confounded: &confounded,
-    });
+    };
+    let (v, empirical) = tables(twin, &ev, conclude(&ev));
     let mut selected = selected;
     selected.retain(|(e, _)| v.named.contains(e));
+    let sentence = match empirical.as_ref() {
+        Some(e) if e.refused.is_none() => format!("{}; {}", v.sentence, e.offer()),
+        _ => v.sentence,
+    };
     Ok(Diagnosis {
         kind: v.kind,
-        verdict: v.sentence,
+        verdict: sentence,
         excess_ratio: p.excess_ratio,
-        noise: p.noise,
+        noise: p.noise.clone(),
         lead: v.lead,
         ranking,
         selected,
         confounded,
         unexplained: v.unexplained,
         proposed: v.proposed,
+        empirical,
     })
+}
+
+/// Stage 8: when the library leaves error, an empirical correction of the maps. Fitted
+/// first on the current model alone: when it explains clearly more on held-out data than
+/// the library's proposal, the proposal is withdrawn ([`table_beats_library`]); else it
+/// is fitted on top of the proposal, for what the proposal leaves.
+fn tables(twin: &dyn Twin, ev: &Evidence, v: Verdict) -> (Verdict, Option<Empirical>) {
+    let fit =
+        |fx: Effects| correct(&EmpiricalInputs { twin, p: ev.p, o: ev.o, fx, channels: twin.channels() });
+    match v.kind {
+        VerdictKind::Unexplained => {
+            let e = fit(ev.o.base);
+            (v, e)
+        }
+        VerdictKind::Partial => {
+            let alone = fit(ev.o.base);
+            match alone {
+                // The table's worse figure, held-out (linear) or confirmed (simulator).
+                Some(e) if e.refused.is_none() && e.removes() >= v.removed + PREFER_TABLE_MARGIN => {
+                    (table_beats_library(ev, &v, e.removes()), Some(e))
+                }
+                _ => {
+                    let e = fit(v.proposed);
+                    (v, e)
+                }
+            }
+        }
+        _ => (v, None),
+    }
 }
 
 /// A set of two or more effects refitted jointly on the simulator.

@@ -1,5 +1,6 @@
 //! `simrod diagnose`: which physical effect does the model lack? (See `engine`.)
 
+pub mod empirical;
 pub mod engine;
 pub mod library;
 pub mod linalg;

@@ -127,11 +127,21 @@ fn channel_sigma(m: &[f64], s: &[f32], h: usize) -> f64 {
 }
 
 /// One simulation's outcome: `[channel][sample]` or why it failed.
-type RunResult = Result<Vec<Vec<f32>>, String>;
+pub(super) type RunResult = Result<Vec<Vec<f32>>, String>;
 
 /// One simulation per job on the current rayon pool (the diagnosis's, see
 /// [`super::engine::diagnose`]), on the fit samples of `p`; results in job order.
 pub(super) fn run_all(twin: &dyn Twin, p: &Prepared, jobs: &[Effects], o: &Options) -> Vec<RunResult> {
+    run_each(jobs, o, |fx| twin.run_every(fx, p.stride))
+}
+
+/// `run(job)` for every job on the current rayon pool, with the progress bar of
+/// [`Options::progress`]; results in job order.
+pub(super) fn run_each<J: Sync>(
+    jobs: &[J],
+    o: &Options,
+    run: impl Fn(&J) -> RunResult + Sync,
+) -> Vec<RunResult> {
     use rayon::prelude::*;
     let bar = match o.progress {
         true => Progress::new("simulations", jobs.len()),
@@ -139,8 +149,8 @@ pub(super) fn run_all(twin: &dyn Twin, p: &Prepared, jobs: &[Effects], o: &Optio
     };
     let out = jobs
         .par_iter()
-        .map(|fx| {
-            let r = twin.run_every(fx, p.stride);
+        .map(|j| {
+            let r = run(j);
             bar.tick("");
             r
         })

@@ -2,9 +2,12 @@
 //! [`simrod_twin::MeasuredTwin`], the same path `simrod compare` takes) and the twin on
 //! built-in profiles (to find a separating experiment).
 
-use model_core::{Builtin, Channel, Effects, Inputs, Profile};
+use std::sync::Arc;
 
-use super::engine::{ProfileProbe, Twin};
+use model_core::{Builtin, Channel, Effects, Inputs, Profile, SetPoints};
+use simrod_io::datadir::ModelData;
+
+use super::engine::{every, ProfileProbe, Twin};
 use simrod_twin::{MeasuredTwin, ModelOptions};
 
 /// The twin on a measured run, restricted to the channels the diagnosis fits.
@@ -31,6 +34,25 @@ impl Twin for RecordedTwin {
 
     fn resolution(&self) -> Vec<f64> {
         self.channels.iter().map(|c| self.twin.model.sensors.counting_step(*c).unwrap_or(0.0)).collect()
+    }
+
+    fn data(&self) -> Option<Arc<ModelData>> {
+        match &self.twin.model.data {
+            Some(d) => Some(d.clone()),
+            None => ModelData::builtin().ok().map(Arc::new),
+        }
+    }
+
+    fn set_points(&self) -> Vec<SetPoints> {
+        self.twin.inputs.iter().map(|i| i.sp).collect()
+    }
+
+    fn run_data(&self, data: &Arc<ModelData>, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
+        let model = ModelOptions { data: Some(data.clone()), ..self.twin.model.clone() };
+        let out = model
+            .run(self.twin.grid.dt_us, *fx, &self.twin.inputs, &self.channels)
+            .map_err(|e| e.to_string())?;
+        Ok(out.into_iter().map(|c| every(c, stride)).collect())
     }
 }
 
@@ -92,6 +114,27 @@ impl Twin for Campaign {
 
     fn segments(&self) -> Vec<usize> {
         self.runs.iter().map(Twin::samples).collect()
+    }
+
+    fn data(&self) -> Option<Arc<ModelData>> {
+        self.runs.first().and_then(Twin::data)
+    }
+
+    fn set_points(&self) -> Vec<SetPoints> {
+        self.runs.iter().flat_map(Twin::set_points).collect()
+    }
+
+    fn run_data(&self, data: &Arc<ModelData>, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
+        // Each run strided from its own first sample, as `Twin::run_every` strides the
+        // joined series only when every run's length is a multiple of the stride: join
+        // whole runs, then stride, so the samples match the fits'.
+        let mut out: Vec<Vec<f32>> = vec![Vec::with_capacity(self.samples()); self.channels().len()];
+        for r in &self.runs {
+            for (all, part) in out.iter_mut().zip(r.run_data(data, fx, 1)?) {
+                all.extend(part);
+            }
+        }
+        Ok(out.into_iter().map(|c| every(c, stride)).collect())
     }
 }
 

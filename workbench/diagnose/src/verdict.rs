@@ -58,6 +58,8 @@ pub(super) struct Verdict {
     /// The effects the verdict names (the set, or the lead, or none): the selection
     /// line shows exactly these, so the two cannot disagree.
     pub named: Vec<&'static str>,
+    /// Share of the excess error the proposal removes, confirmed on the simulator.
+    pub removed: f64,
 }
 
 impl Evidence<'_> {
@@ -112,7 +114,7 @@ impl Evidence<'_> {
 
     /// The channel with the largest share of the excess error left by `sim`, and its
     /// worst 2 s window.
-    fn locate_rest(&self, sim: &[Vec<f32>]) -> Location {
+    pub(super) fn locate_rest(&self, sim: &[Vec<f32>]) -> Location {
         let p = self.p;
         let m = p.idx.len() as f64;
         let mut shares: Vec<(usize, f64)> =
@@ -254,7 +256,8 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
         VerdictKind::Missing | VerdictKind::Partial => lead.map(|l| l.effect),
         _ => None,
     };
-    Verdict { kind, sentence, lead, unexplained, proposed, named: lead.into_iter().collect() }
+    let removed = lead_fit.filter(|_| lead.is_some()).map_or(0.0, |f| (ev.p.e0 - f.energy) / ev.p.excess);
+    Verdict { kind, sentence, lead, unexplained, proposed, named: lead.into_iter().collect(), removed }
 }
 
 /// The verdict on the selected set, when it has two or more effects and its joint
@@ -304,6 +307,7 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
         unexplained,
         proposed: with_values(&o.base, &specs, &set.fit.values),
         named: set.effects.clone(),
+        removed: (p.e0 - set.fit.energy) / p.excess,
     })
 }
 
@@ -432,7 +436,7 @@ fn cause_kind(l: &Candidate) -> String {
     }
 }
 
-fn place(loc: &Location) -> String {
+pub(super) fn place(loc: &Location) -> String {
     format!(
         "{} ({:.0} % of the excess), worst at {:.1}–{:.1} s",
         loc.channel,
@@ -440,6 +444,36 @@ fn place(loc: &Location) -> String {
         loc.window_s.0,
         loc.window_s.1
     )
+}
+
+/// How much more of the excess error (held-out) an empirical correction alone must remove
+/// than the library's proposal (on the simulator, in-sample) before the library effect is
+/// no longer claimed: a fitted table has many more parameters, so the physical effect
+/// keeps the benefit of the doubt.
+pub(super) const PREFER_TABLE_MARGIN: f64 = 0.15;
+
+/// The verdict when the maps, corrected empirically, explain the error better than the
+/// library's proposal `v` does: nothing from the library is claimed (a library effect
+/// that only soaks up a wrong map's error would be a false claim), and the error is
+/// located where the current model leaves it.
+pub(super) fn table_beats_library(ev: &Evidence, v: &Verdict, table_heldout: f64) -> Verdict {
+    let loc = ev.locate_rest(&ev.p.base_sim);
+    let sentence = format!(
+        "unexplained by the library: its best proposal ({}) removes {:.0} % of the error above noise, less than a correction of the maps removes on data its fit did not see and on the simulator ({:.0} %), so no library effect is claimed: {}",
+        v.named.join(" + "),
+        100.0 * v.removed,
+        100.0 * table_heldout,
+        place(&loc)
+    );
+    Verdict {
+        kind: VerdictKind::Unexplained,
+        sentence,
+        lead: None,
+        unexplained: Some(loc),
+        proposed: ev.o.base,
+        named: Vec::new(),
+        removed: 0.0,
+    }
 }
 
 #[cfg(test)]

@@ -1,0 +1,781 @@
+//! Stage 8, when the library leaves error: an **empirical correction** of the model's
+//! maps, located where the error is and labelled as what it is — a fitted table, not a
+//! physical effect.
+//!
+//! 1. *Which nodes.* A map node can only matter where the run takes the map's inputs
+//!    near it: the 2-D maps' set-point grids are read from the recorded set points
+//!    ([`Twin::set_points`]); the 1-D maps (friction over axle speed, the throttle and
+//!    speed maps) offer every node, and the simulations drop those the run never moves.
+//! 2. *Which maps.* Each map is screened with two shapes (a shift and a tilt over its
+//!    visited nodes); the maps whose shapes can remove error go on.
+//! 3. *How much.* One simulation per visited node of those maps gives the linearised
+//!    model; the correction minimises the weighted error plus `λ` times its roughness
+//!    (second and first differences between neighbouring visited nodes, never across
+//!    zero speed, where friction changes sign). `λ` and the set of maps are chosen on
+//!    **held-out data** (2 s blocks of time dealt out to five folds, [`blocks`]):
+//!    forward over maps, each kept only if it removes more error on data its fit did
+//!    not see.
+//! 4. *Confirmed* on the simulator with the corrected data; refused when it makes a
+//!    channel worse.
+//!
+//! Nodes the run never visits keep their value, and every corrected file says in its
+//! comments that it is empirical and what it was fitted on.
+
+use std::sync::Arc;
+
+use model_core::{Channel, Effects, SetPoints};
+use simrod_io::datadir::ModelData;
+
+use super::engine::{ChannelChange, Options, Twin};
+use super::linalg::solve_spd;
+use super::preparation::{rmse, run_each, Prepared, RunResult};
+
+/// Most fit samples the map regressions read (every k-th of [`Prepared::idx`]).
+const SAMPLES: usize = 4000;
+/// Most maps corrected at once.
+const MAX_MAPS: usize = 4;
+/// Least share of the remaining excess error a map's screening shapes must remove.
+const SCREEN_SHARE: f64 = 0.02;
+/// Least share of the remaining excess error a map must add on held-out data to join.
+const GAIN_SHARE: f64 = 0.03;
+/// Least share of the remaining excess error the correction must remove, on held-out
+/// data and on the simulator, to be offered.
+const OFFER_SHARE: f64 = 0.10;
+/// No channel's RMSE may grow by more than this factor.
+const WORSE: f64 = 1.10;
+/// Weight of first differences relative to second differences in the roughness.
+const FIRST_DIFF: f64 = 0.1;
+
+/// A corrected map.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct MapCorrection {
+    /// The data file.
+    pub file: &'static str,
+    /// What the map gives, from its header.
+    pub quantity: String,
+    /// Nodes changed (visited by the runs) and the map's nodes.
+    pub nodes: (usize, usize),
+    /// RMS and largest change over the changed nodes, in the map's unit.
+    pub rms_change: f64,
+    pub max_change: f64,
+}
+
+/// An empirical correction of the maps, fitted on the runs.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Empirical {
+    /// The corrected maps, in the order the held-out selection added them.
+    pub maps: Vec<MapCorrection>,
+    /// Roughness weight chosen on held-out data (relative to the mean of `diag(J'WJ)`).
+    pub lambda: f64,
+    /// Share of the excess error (over noise, after the proposed effects) removed on
+    /// held-out data.
+    pub heldout_reduction: f64,
+    /// The same, confirmed on the simulator with the corrected data, on every fit sample.
+    pub confirmed_reduction: f64,
+    /// Per-channel RMSE before and after (predicted: linear, confirmed: simulator).
+    pub channels: Vec<ChannelChange>,
+    /// Why no correction is offered (then `maps` lists what was tried).
+    pub refused: Option<String>,
+    /// The corrected model data.
+    #[serde(skip)]
+    pub data: Option<Arc<ModelData>>,
+}
+
+impl Empirical {
+    /// Share of the excess error it removes, the lower of the held-out (linear) and the
+    /// confirmed (simulator) figures.
+    pub fn removes(&self) -> f64 {
+        self.heldout_reduction.min(self.confirmed_reduction)
+    }
+
+    /// The verdict's clause offering the correction.
+    pub fn offer(&self) -> String {
+        let maps: Vec<String> = self
+            .maps
+            .iter()
+            .map(|m| {
+                format!("{} ({} of {} nodes, RMS change {:.3})", m.file, m.nodes.0, m.nodes.1, m.rms_change)
+            })
+            .collect();
+        format!(
+            "an EMPIRICAL correction (a fitted table, not a physical effect) of {} removes {:.0} % of the remaining excess error on held-out data ({:.0} % on the whole run); --write-data DIR writes it as a data directory",
+            maps.join(" + "),
+            100.0 * self.heldout_reduction,
+            100.0 * self.confirmed_reduction
+        )
+    }
+}
+
+/// Which table of [`ModelData`] a map is, and what its nodes are read against.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Axis {
+    /// A 1-D map; `signed`: its axis crosses zero where the value changes sign.
+    One { signed: bool },
+    /// A 2-D map over (throttle set point, this load side's set point).
+    Load(usize),
+    /// A 2-D map over (throttle set point, mean load set point).
+    LoadMean,
+}
+
+/// The maps a correction may change.
+const MAPS: [(&str, Axis); 12] = [
+    ("throttle_input_map.csv", Axis::One { signed: false }),
+    ("speed_map_fwd.csv", Axis::One { signed: false }),
+    ("speed_map_rev.csv", Axis::One { signed: false }),
+    ("axle_friction_L.csv", Axis::One { signed: true }),
+    ("axle_friction_R.csv", Axis::One { signed: true }),
+    ("load_torque_L.csv", Axis::Load(0)),
+    ("load_torque_R.csv", Axis::Load(1)),
+    ("load_current_L.csv", Axis::Load(0)),
+    ("load_current_R.csv", Axis::Load(1)),
+    ("load_power_L.csv", Axis::Load(0)),
+    ("load_power_R.csv", Axis::Load(1)),
+    ("sut_inverter_power.csv", Axis::LoadMean),
+];
+
+/// The values of map `file` in `d` (1-D: `y`; 2-D: `z`, row-major) and its grid sizes.
+fn values(d: &ModelData, file: &str) -> Option<(Vec<f32>, usize, usize)> {
+    if let Some((_, m)) = d.maps_1d().into_iter().find(|(f, _)| *f == file) {
+        return Some((m.y.clone(), m.x.len(), 1));
+    }
+    d.maps_2d().into_iter().find(|(f, _)| *f == file).map(|(_, m)| (m.z.clone(), m.x.len(), m.y.len()))
+}
+
+/// Mutable values and comments of map `file` in `d`.
+fn values_mut<'a>(d: &'a mut ModelData, file: &str) -> Option<(&'a mut Vec<f32>, &'a mut Vec<String>)> {
+    let m1 = |m: &'a mut simrod_io::datadir::Map1| (&mut m.y, &mut m.comments);
+    let m2 = |m: &'a mut simrod_io::datadir::Map2| (&mut m.z, &mut m.comments);
+    let [fl, fr] = &mut d.friction;
+    let [tl, tr] = &mut d.load_torque;
+    let [cl, cr] = &mut d.load_current;
+    let [pl, pr] = &mut d.load_power;
+    Some(match file {
+        "throttle_input_map.csv" => m1(&mut d.throttle_input),
+        "speed_map_fwd.csv" => m1(&mut d.speed_fwd),
+        "speed_map_rev.csv" => m1(&mut d.speed_rev),
+        "axle_friction_L.csv" => m1(fl),
+        "axle_friction_R.csv" => m1(fr),
+        "load_torque_L.csv" => m2(tl),
+        "load_torque_R.csv" => m2(tr),
+        "load_current_L.csv" => m2(cl),
+        "load_current_R.csv" => m2(cr),
+        "load_power_L.csv" => m2(pl),
+        "load_power_R.csv" => m2(pr),
+        "sut_inverter_power.csv" => m2(&mut d.sut_power),
+        _ => return None,
+    })
+}
+
+/// Grid axes of map `file` (`x`, and `y` for a 2-D map) and its header's quantity.
+fn grid(d: &ModelData, file: &str) -> Option<(Vec<f32>, Vec<f32>, String)> {
+    if let Some((_, m)) = d.maps_1d().into_iter().find(|(f, _)| *f == file) {
+        let q = m.header.split(',').nth(1).unwrap_or("").trim().to_owned();
+        return Some((m.x.clone(), Vec::new(), q));
+    }
+    d.maps_2d().into_iter().find(|(f, _)| *f == file).map(|(f, m)| {
+        let q = f.trim_end_matches(".csv").replace('_', " ");
+        (m.x.clone(), m.y.clone(), q)
+    })
+}
+
+/// Indices of grid `g` whose neighbouring cells hold `v` (inputs beyond the grid count
+/// for the end node, as the tables clamp).
+fn near(g: &[f32], v: f32, out: &mut [bool]) {
+    let n = g.len();
+    if n == 0 || !v.is_finite() {
+        return;
+    }
+    let i = g.partition_point(|x| *x <= v);
+    // v in [g[i-1], g[i]): nodes i-1 and i; at or beyond the ends, the end node.
+    if i == 0 {
+        out[0] = true;
+    } else if i >= n {
+        out[n - 1] = true;
+    } else {
+        out[i - 1] = true;
+        out[i] = true;
+    }
+}
+
+/// One map's candidate nodes: flat indices into its values.
+fn visited(d: &ModelData, file: &str, axis: Axis, sps: &[SetPoints]) -> Vec<usize> {
+    let Some((x, y, _)) = grid(d, file) else { return Vec::new() };
+    match axis {
+        Axis::One { .. } => (0..x.len()).collect(),
+        Axis::Load(_) | Axis::LoadMean => {
+            let nx = x.len();
+            let mut hit = vec![false; nx * y.len()];
+            let (mut hx, mut hy) = (vec![false; nx], vec![false; y.len()]);
+            for sp in sps {
+                let load = match axis {
+                    Axis::Load(i) => sp.load_pct[i],
+                    _ => 0.5 * (sp.load_pct[0] + sp.load_pct[1]),
+                };
+                hx.iter_mut().for_each(|h| *h = false);
+                hy.iter_mut().for_each(|h| *h = false);
+                near(&x, sp.throttle_pct.clamp(-100.0, 100.0), &mut hx);
+                near(&y, load.clamp(-100.0, 100.0), &mut hy);
+                for (iy, _) in hy.iter().enumerate().filter(|(_, h)| **h) {
+                    for (ix, _) in hx.iter().enumerate().filter(|(_, h)| **h) {
+                        hit[iy * nx + ix] = true;
+                    }
+                }
+            }
+            hit.iter().enumerate().filter(|(_, h)| **h).map(|(i, _)| i).collect()
+        }
+    }
+}
+
+/// A map's nodes in the regression: which values, and the step each column is in.
+struct MapNodes {
+    file: &'static str,
+    axis: Axis,
+    nodes: Vec<usize>,
+    /// The finite-difference step [map unit]: the columns' unit.
+    step: f64,
+    /// Largest correction trusted, in steps.
+    limit: f64,
+}
+
+/// A copy of `base` with `delta[k]` (in steps) added to each node of `maps`.
+fn corrected(base: &ModelData, maps: &[&MapNodes], delta: &[f64]) -> ModelData {
+    let mut d = base.clone();
+    let mut k = 0;
+    for m in maps {
+        if let Some((v, _)) = values_mut(&mut d, m.file) {
+            for &i in &m.nodes {
+                if let (Some(x), Some(t)) = (v.get_mut(i), delta.get(k)) {
+                    *x = (f64::from(*x) + t * m.step) as f32;
+                }
+                k += 1;
+            }
+        }
+    }
+    d
+}
+
+/// The linearised model over a set of columns: per fold and whole, `J'WJ` and `J'W r`.
+struct Normal {
+    n: usize,
+    g: Vec<f64>,
+    b: Vec<f64>,
+    gf: Vec<Vec<f64>>,
+    bf: Vec<Vec<f64>>,
+}
+
+/// Responses `[column][channel][sample]` (sample: position in `rows`) against the
+/// residual `r[channel][sample]`, weights per channel, folds per sample.
+fn normal(cols: &[&Vec<Vec<f64>>], r: &[Vec<f64>], w: &[f64], folds: &[usize], nf: usize) -> Normal {
+    let n = cols.len();
+    let (mut gf, mut bf) = (vec![vec![0.0; n * n]; nf], vec![vec![0.0; n]; nf]);
+    let mut a = vec![0.0; n];
+    for (c, (rc, wc)) in r.iter().zip(w).enumerate() {
+        for (t, (rt, f)) in rc.iter().zip(folds).enumerate() {
+            for (aj, col) in a.iter_mut().zip(cols) {
+                *aj = col[c][t];
+            }
+            let (g, b) = (&mut gf[*f], &mut bf[*f]);
+            for i in 0..n {
+                if a[i] == 0.0 {
+                    continue;
+                }
+                let wa = wc * a[i];
+                b[i] += wa * rt;
+                for j in i..n {
+                    g[i * n + j] += wa * a[j];
+                }
+            }
+        }
+    }
+    for g in &mut gf {
+        for i in 0..n {
+            for j in 0..i {
+                g[i * n + j] = g[j * n + i];
+            }
+        }
+    }
+    let mut g = vec![0.0; n * n];
+    let mut b = vec![0.0; n];
+    for (gk, bk) in gf.iter().zip(&bf) {
+        g.iter_mut().zip(gk).for_each(|(x, y)| *x += y);
+        b.iter_mut().zip(bk).for_each(|(x, y)| *x += y);
+    }
+    Normal { n, g, b, gf, bf }
+}
+
+/// The roughness matrix of `maps`' columns (in steps): second differences, and
+/// [`FIRST_DIFF`] times first differences, between neighbouring visited nodes.
+fn roughness(maps: &[&MapNodes], d: &ModelData) -> Vec<f64> {
+    let n: usize = maps.iter().map(|m| m.nodes.len()).sum();
+    let mut p = vec![0.0; n * n];
+    let mut add = |terms: &[(usize, f64)], weight: f64| {
+        for &(i, a) in terms {
+            for &(j, b) in terms {
+                p[i * n + j] += weight * a * b;
+            }
+        }
+    };
+    let mut off = 0;
+    for m in maps {
+        let Some((x, y, _)) = grid(d, m.file) else { continue };
+        let nx = x.len();
+        let col = |node: usize| m.nodes.iter().position(|&k| k == node).map(|k| k + off);
+        // Lines of the grid: rows (along x) and, for 2-D maps, columns (along y).
+        let mut lines: Vec<Vec<usize>> = Vec::new();
+        let ny = y.len().max(1);
+        for iy in 0..ny {
+            lines.push((0..nx).map(|ix| iy * nx + ix).collect());
+        }
+        if !y.is_empty() {
+            for ix in 0..nx {
+                lines.push((0..ny).map(|iy| iy * nx + ix).collect());
+            }
+        }
+        let crosses = |a: usize, b: usize| {
+            matches!(m.axis, Axis::One { signed: true }) && (x[a % nx] < 0.0) != (x[b % nx] < 0.0)
+        };
+        for line in &lines {
+            for w in line.windows(2) {
+                if let (Some(i), Some(j)) = (col(w[0]), col(w[1])) {
+                    if !crosses(w[0], w[1]) {
+                        add(&[(i, 1.0), (j, -1.0)], FIRST_DIFF);
+                    }
+                }
+            }
+            for w in line.windows(3) {
+                if let (Some(i), Some(j), Some(k)) = (col(w[0]), col(w[1]), col(w[2])) {
+                    if !crosses(w[0], w[1]) && !crosses(w[1], w[2]) {
+                        add(&[(i, 1.0), (j, -2.0), (k, 1.0)], 1.0);
+                    }
+                }
+            }
+        }
+        off += m.nodes.len();
+    }
+    p
+}
+
+/// Held-out error removed with roughness weight `lam` (absolute): the sum over folds of
+/// what a fit without the fold removes on it; and the fit on every fold.
+fn heldout(nm: &Normal, p: &[f64], lam: f64) -> (f64, Vec<f64>) {
+    let n = nm.n;
+    let mut total = 0.0;
+    for (gk, bk) in nm.gf.iter().zip(&nm.bf) {
+        if bk.iter().all(|v| *v == 0.0) {
+            continue;
+        }
+        let g: Vec<f64> = nm.g.iter().zip(gk).zip(p).map(|((a, b), q)| a - b + lam * q).collect();
+        let b: Vec<f64> = nm.b.iter().zip(bk).map(|(a, b)| a - b).collect();
+        let Some(th) = solve_spd(&g, &b, 1e-9) else { return (f64::NEG_INFINITY, Vec::new()) };
+        let mut quad = 0.0;
+        for i in 0..n {
+            for j in 0..n {
+                quad += th[i] * gk[i * n + j] * th[j];
+            }
+        }
+        total += 2.0 * th.iter().zip(bk).map(|(a, b)| a * b).sum::<f64>() - quad;
+    }
+    let g: Vec<f64> = nm.g.iter().zip(p).map(|(a, q)| a + lam * q).collect();
+    let th = solve_spd(&g, &nm.b, 1e-9).unwrap_or_else(|| vec![0.0; n]);
+    (total, th)
+}
+
+/// The best roughness weight for a set of columns whose fit stays within `limit` steps
+/// of every node (a linearisation is trusted only so far): (held-out removal,
+/// relative λ, fit).
+fn best_lambda(nm: &Normal, p: &[f64], limit: &[f64]) -> (f64, f64, Vec<f64>) {
+    let n = nm.n.max(1);
+    let scale = (0..nm.n).map(|i| nm.g[i * nm.n + i]).sum::<f64>() / n as f64;
+    let mut best = (f64::NEG_INFINITY, 0.0, vec![0.0; nm.n]);
+    for k in -12..=8 {
+        let rel = 10f64.powf(f64::from(k) / 2.0);
+        let (h, th) = heldout(nm, p, rel * scale.max(1e-300));
+        let within = th.iter().zip(limit).all(|(t, l)| t.abs() <= *l);
+        if within && h > best.0 {
+            best = (h, rel, th);
+        }
+    }
+    best
+}
+
+/// What the stage reads.
+pub(super) struct Inputs<'a> {
+    pub twin: &'a dyn Twin,
+    pub p: &'a Prepared,
+    pub o: &'a Options,
+    /// The effects the correction is fitted on top of (the base plus what the verdict
+    /// proposes).
+    pub fx: Effects,
+    pub channels: &'a [Channel],
+}
+
+/// What the current model (with the proposal) leaves, on the samples the table fits read.
+struct Basis {
+    /// Fit samples read (positions in [`Prepared`]'s series).
+    rows: Vec<usize>,
+    /// Held-out fold of each ([`blocks`]).
+    folds: Vec<usize>,
+    /// The model's outputs there, and the residual `[channel][row]`.
+    sim0: Vec<Vec<f32>>,
+    r: Vec<Vec<f64>>,
+    /// Weighted error energy, and its excess over noise.
+    energy: f64,
+    excess: f64,
+}
+
+impl Basis {
+    /// A run's change from the model's outputs, `[channel][row]`.
+    fn diff(&self, out: &[Vec<f32>]) -> Vec<Vec<f64>> {
+        out.iter()
+            .zip(&self.sim0)
+            .map(|(a, b)| self.rows.iter().map(|&t| f64::from(a[t]) - f64::from(b[t])).collect())
+            .collect()
+    }
+
+    /// The normal equations of `cols` against the residual, per fold.
+    fn normal(&self, cols: &[&Vec<Vec<f64>>], w: &[f64]) -> Normal {
+        normal(cols, &self.r, w, &self.folds, FOLDS)
+    }
+}
+
+/// Fit an empirical correction of the maps to what `fx` leaves; `None` when the twin's
+/// maps cannot be changed or nothing is left to correct.
+pub(super) fn correct(inp: &Inputs) -> Option<Empirical> {
+    let (twin, p) = (inp.twin, inp.p);
+    let base = twin.data()?;
+    let every = p.idx.len().div_ceil(SAMPLES).max(1);
+    let rows: Vec<usize> = p.idx.iter().copied().step_by(every).collect();
+    let sim0 = twin.run_data(&base, &inp.fx, p.stride).ok()?;
+    let r: Vec<Vec<f64>> = p
+        .meas
+        .iter()
+        .zip(&sim0)
+        .map(|(m, s)| rows.iter().map(|&t| m[t] - f64::from(s[t])).collect())
+        .collect();
+    let energy: f64 = r.iter().zip(&p.weights).map(|(rc, w)| w * rc.iter().map(|v| v * v).sum::<f64>()).sum();
+    let excess = energy - (rows.len() * r.len()) as f64;
+    if excess <= 0.0 {
+        return None;
+    }
+    let folds = blocks(&rows, p.stride, twin.dt_s());
+    let b = Basis { rows, folds, sim0, r, energy, excess };
+    let maps = candidates(&base, &twin.set_points());
+    let chosen = screen(inp, &base, &maps, &b);
+    if chosen.is_empty() {
+        return None;
+    }
+    // One simulation per visited node of the screened maps.
+    let jobs: Vec<(usize, usize)> =
+        chosen.iter().flat_map(|&m| (0..maps[m].nodes.len()).map(move |k| (m, k))).collect();
+    let runs = run_each(&jobs, inp.o, |&(m, k)| {
+        let mut one = vec![0.0; maps[m].nodes.len()];
+        one[k] = 1.0;
+        let d = Arc::new(corrected(&base, &[&maps[m]], &one));
+        twin.run_data(&d, &inp.fx, p.stride)
+    });
+    let mut cols: Vec<Vec<Vec<Vec<f64>>>> = chosen.iter().map(|_| Vec::new()).collect();
+    for ((m, _), out) in jobs.iter().zip(runs) {
+        let slot = chosen.iter().position(|c| c == m)?;
+        cols[slot].push(b.diff(&out.ok()?));
+    }
+    let mut maps = maps;
+    for (slot, &m) in chosen.iter().enumerate() {
+        keep_moving(&mut maps[m], &mut cols[slot], &p.weights);
+    }
+    let screened: Vec<&MapNodes> = chosen.iter().map(|&m| &maps[m]).collect();
+    select(inp, &base, &screened, &cols, &b)
+}
+
+/// Held-out folds of the table fits: [`BLOCK_S`] blocks of time dealt out in turn.
+const FOLDS: usize = 5;
+/// [s] Length of a held-out block: longer than the residual's correlation (noise,
+/// counting windows), shorter than the plateaus that visit a map's nodes.
+const BLOCK_S: f64 = 2.0;
+
+/// The fold of each fit sample `rows[k]` (a position in series strided by `stride` at
+/// `dt` seconds): 2 s blocks dealt out to the folds in turn. Not the runs of a campaign
+/// or fifths of a run, as the library's selection uses: a table corrects only nodes the
+/// runs visit, and a fold holding every visit of a node would test an extrapolation the
+/// table never makes (it keeps the base value there); blocks dealt out in turn test
+/// whether the fitted values are signal or noise.
+fn blocks(rows: &[usize], stride: usize, dt: f64) -> Vec<usize> {
+    rows.iter().map(|&t| ((t * stride) as f64 * dt / BLOCK_S) as usize % FOLDS).collect()
+}
+
+/// Least weighted energy of a node's response, relative to the map's strongest node,
+/// for the node to be corrected: below it the runs do not visit the node (a 1-D map
+/// offers every node), and its value would be set by the roughness alone.
+const MOVES_NODE: f64 = 1e-4;
+
+/// Drop the nodes of `m` whose response (`cols`, in the same order) the runs hardly see.
+fn keep_moving(m: &mut MapNodes, cols: &mut Vec<Vec<Vec<f64>>>, w: &[f64]) {
+    let energy: Vec<f64> = cols
+        .iter()
+        .map(|c| c.iter().zip(w).map(|(ch, wc)| wc * ch.iter().map(|v| v * v).sum::<f64>()).sum())
+        .collect();
+    let top = energy.iter().fold(0.0f64, |a, e| a.max(*e));
+    let keep: Vec<bool> = energy.iter().map(|e| top > 0.0 && *e >= MOVES_NODE * top).collect();
+    let mut k = keep.iter();
+    m.nodes.retain(|_| k.next().copied().unwrap_or(false));
+    let mut k = keep.iter();
+    cols.retain(|_| k.next().copied().unwrap_or(false));
+}
+
+/// Every map with candidate nodes, with its finite-difference step.
+fn candidates(base: &ModelData, sps: &[SetPoints]) -> Vec<MapNodes> {
+    MAPS.iter()
+        .filter_map(|&(file, axis)| {
+            let (v, _, _) = values(base, file)?;
+            let nodes = visited(base, file, axis, sps);
+            let peak = nodes.iter().filter_map(|&i| v.get(i)).fold(0.0f64, |a, x| a.max(f64::from(x.abs())));
+            // Steps of 2 % of the map's largest visited value, corrections up to 20 %
+            // (friction, small and uncertain: steps of 10 %, up to 50 %).
+            let (share, limit) =
+                if matches!(axis, Axis::One { signed: true }) { (0.1, 5.0) } else { (0.02, 10.0) };
+            let step = (share * peak).max(1e-3);
+            (!nodes.is_empty()).then_some(MapNodes { file, axis, nodes, step, limit })
+        })
+        .collect()
+}
+
+/// Maps whose shift and tilt over their visited nodes can remove at least
+/// [`SCREEN_SHARE`] of the excess, best first, at most [`MAX_MAPS`].
+fn screen(inp: &Inputs, base: &ModelData, maps: &[MapNodes], b: &Basis) -> Vec<usize> {
+    let jobs: Vec<(usize, bool)> = (0..maps.len()).flat_map(|m| [(m, false), (m, true)]).collect();
+    let runs: Vec<RunResult> = run_each(&jobs, inp.o, |&(m, tilt)| {
+        let n = maps[m].nodes.len();
+        let shape: Vec<f64> =
+            (0..n).map(|k| if tilt { 2.0 * k as f64 / (n.max(2) - 1) as f64 - 1.0 } else { 1.0 }).collect();
+        let d = Arc::new(corrected(base, &[&maps[m]], &shape));
+        inp.twin.run_data(&d, &inp.fx, inp.p.stride)
+    });
+    let mut scored: Vec<(usize, f64)> = Vec::new();
+    for (m, pair) in runs.chunks(2).enumerate() {
+        let cols: Vec<Vec<Vec<f64>>> =
+            pair.iter().filter_map(|o| o.as_ref().ok()).map(|o| b.diff(o)).collect();
+        if cols.len() != 2 {
+            continue;
+        }
+        let refs: Vec<&Vec<Vec<f64>>> = cols.iter().collect();
+        let nm = b.normal(&refs, &inp.p.weights);
+        let Some(th) = solve_spd(&nm.g, &nm.b, 1e-9) else { continue };
+        let removed: f64 = th.iter().zip(&nm.b).map(|(x, y)| x * y).sum();
+        if removed >= SCREEN_SHARE * b.excess {
+            scored.push((m, removed));
+        }
+    }
+    scored.sort_by(|a, b| b.1.total_cmp(&a.1));
+    scored.into_iter().take(MAX_MAPS).map(|(m, _)| m).collect()
+}
+
+/// Forward selection over the screened maps on held-out data, the joint fit, and its
+/// confirmation on the simulator.
+fn select(
+    inp: &Inputs,
+    base: &Arc<ModelData>,
+    maps: &[&MapNodes],
+    cols: &[Vec<Vec<Vec<f64>>>],
+    b: &Basis,
+) -> Option<Empirical> {
+    let w = &inp.p.weights;
+    let (rows, excess, sim0) = (&b.rows, b.excess, &b.sim0);
+    let fit_of = |set: &[usize]| {
+        let refs: Vec<&Vec<Vec<f64>>> = set.iter().flat_map(|&s| cols[s].iter()).collect();
+        let mn: Vec<&MapNodes> = set.iter().map(|&s| maps[s]).collect();
+        let nm = b.normal(&refs, w);
+        let pm = roughness(&mn, base);
+        let limit: Vec<f64> = mn.iter().flat_map(|m| m.nodes.iter().map(|_| m.limit)).collect();
+        best_lambda(&nm, &pm, &limit)
+    };
+    let (mut set, mut best): (Vec<usize>, (f64, f64, Vec<f64>)) = (Vec::new(), (0.0, 0.0, Vec::new()));
+    loop {
+        let trial = (0..maps.len())
+            .filter(|s| !set.contains(s))
+            .map(|s| {
+                let mut t = set.clone();
+                t.push(s);
+                let f = fit_of(&t);
+                (t, f)
+            })
+            .max_by(|a, b| a.1 .0.total_cmp(&b.1 .0));
+        match trial {
+            Some((t, f)) if f.0 - best.0 >= GAIN_SHARE * excess => {
+                set = t;
+                best = f;
+            }
+            _ => break,
+        }
+    }
+    if set.is_empty() {
+        return None;
+    }
+    let mn: Vec<&MapNodes> = set.iter().map(|&s| maps[s]).collect();
+    let (held, lambda, theta) = best;
+    let mut data = corrected(base, &mn, &theta);
+    monotone_where_base_is(&mut data, base, &mn);
+    let data = Arc::new(data);
+    let after = inp.twin.run_data(&data, &inp.fx, inp.p.stride).ok()?;
+    let p = inp.p;
+    let predicted = |c: usize| -> Vec<f64> {
+        let refs: Vec<&Vec<Vec<f64>>> = set.iter().flat_map(|&s| cols[s].iter()).collect();
+        (0..rows.len()).map(|t| refs.iter().zip(&theta).map(|(col, th)| col[c][t] * th).sum()).collect()
+    };
+    let mut channels = Vec::new();
+    let (mut e_after, mut worse) = (0.0, None);
+    for (c, name) in inp.channels.iter().enumerate() {
+        let meas: Vec<f64> = rows.iter().map(|&t| p.meas[c][t]).collect();
+        let before: Vec<f64> = rows.iter().map(|&t| f64::from(sim0[c][t])).collect();
+        let now: Vec<f64> = rows.iter().map(|&t| f64::from(after[c][t])).collect();
+        let lin: Vec<f64> = before.iter().zip(predicted(c)).map(|(a, d)| a + d).collect();
+        let all: Vec<usize> = (0..rows.len()).collect();
+        let (rb, ra) = (rmse(&meas, &before, &all), rmse(&meas, &now, &all));
+        e_after += w[c] * ra * ra * rows.len() as f64;
+        if ra > WORSE * rb && worse.is_none() {
+            worse = Some(format!("it would make {} worse ({:.3} -> {:.3})", name.name(), rb, ra));
+        }
+        channels.push(ChannelChange {
+            channel: name.name(),
+            rmse_before: rb,
+            rmse_predicted: rmse(&meas, &lin, &all),
+            rmse_confirmed: Some(ra),
+        });
+    }
+    // Capped at all of it: below the estimated noise level is noise, not more excess.
+    let confirmed = ((b.energy - e_after) / excess).min(1.0);
+    let heldout_reduction = held / excess;
+    let in_sample: f64 = {
+        let refs: Vec<&Vec<Vec<f64>>> = set.iter().flat_map(|&s| cols[s].iter()).collect();
+        let nm = b.normal(&refs, w);
+        let quad: f64 =
+            (0..nm.n).map(|i| (0..nm.n).map(|j| theta[i] * nm.g[i * nm.n + j] * theta[j]).sum::<f64>()).sum();
+        (2.0 * theta.iter().zip(&nm.b).map(|(a, b)| a * b).sum::<f64>() - quad) / excess
+    };
+    let refused = worse.or_else(|| {
+        (confirmed < 0.5 * in_sample).then(|| {
+            format!(
+                "the simulator confirms {:.0} % where the linearised maps predicted {:.0} %: their response is too nonlinear here to trust the table",
+                100.0 * confirmed,
+                100.0 * in_sample
+            )
+        })
+    });
+    let refused = refused.or_else(|| {
+        (heldout_reduction < OFFER_SHARE || confirmed < OFFER_SHARE).then(|| {
+            format!(
+                "it removes {:.0} % of the excess on held-out data and {:.0} % on the simulator (at least {:.0} % needed)",
+                100.0 * heldout_reduction,
+                100.0 * confirmed,
+                100.0 * OFFER_SHARE
+            )
+        })
+    });
+    let summaries = mn.iter().map(|m| summarize(m, base, &data)).collect();
+    let data = match refused {
+        None => Some(label(data, &mn, heldout_reduction, inp.p.folds.len())),
+        Some(_) => None,
+    };
+    Some(Empirical {
+        maps: summaries,
+        lambda,
+        heldout_reduction,
+        confirmed_reduction: confirmed,
+        channels,
+        refused,
+        data,
+    })
+}
+
+/// Speed and throttle maps that never decrease in the base data do not in the
+/// correction either (a running maximum over the grid).
+fn monotone_where_base_is(d: &mut ModelData, base: &ModelData, maps: &[&MapNodes]) {
+    for m in maps {
+        if !matches!(m.axis, Axis::One { signed: false }) {
+            continue;
+        }
+        let Some((b, _, _)) = values(base, m.file) else { continue };
+        if b.windows(2).any(|w| w[1] < w[0]) {
+            continue;
+        }
+        if let Some((v, _)) = values_mut(d, m.file) {
+            for i in 1..v.len() {
+                if v[i] < v[i - 1] {
+                    v[i] = v[i - 1];
+                }
+            }
+        }
+    }
+}
+
+/// What changed in one map.
+fn summarize(m: &MapNodes, base: &ModelData, now: &ModelData) -> MapCorrection {
+    let (b, nx, ny) = values(base, m.file).unwrap_or_default();
+    let (a, _, _) = values(now, m.file).unwrap_or_default();
+    let changes: Vec<f64> =
+        b.iter().zip(&a).map(|(x, y)| f64::from(*y) - f64::from(*x)).filter(|d| *d != 0.0).collect();
+    let rms = (changes.iter().map(|d| d * d).sum::<f64>() / changes.len().max(1) as f64).sqrt();
+    MapCorrection {
+        file: m.file,
+        quantity: grid(base, m.file).map(|g| g.2).unwrap_or_default(),
+        nodes: (changes.len(), nx * ny),
+        rms_change: rms,
+        max_change: changes.iter().fold(0.0f64, |acc, d| acc.max(d.abs())),
+    }
+}
+
+/// The corrected data with every changed map's comments saying what it is.
+fn label(data: Arc<ModelData>, maps: &[&MapNodes], heldout: f64, samples: usize) -> Arc<ModelData> {
+    let mut d = (*data).clone();
+    for m in maps {
+        if let Some((_, comments)) = values_mut(&mut d, m.file) {
+            comments.push(format!(
+                "# EMPIRICAL CORRECTION (simrod diagnose): a table fitted to measured runs, not a physical effect. \
+                 {} visited nodes changed, smoothed, chosen on held-out data ({:.0} % of the excess error removed there; \
+                 {samples} fit samples); the other nodes keep their value.",
+                m.nodes.len(),
+                100.0 * heldout
+            ));
+        }
+    }
+    Arc::new(d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn near_marks_the_cell_around_a_value() {
+        let g = [-100.0, -50.0, 0.0, 50.0, 100.0];
+        let mut h = [false; 5];
+        near(&g, 20.0, &mut h);
+        assert_eq!(h, [false, false, true, true, false]);
+        let mut h = [false; 5];
+        near(&g, 100.0, &mut h);
+        assert_eq!(h, [false, false, false, false, true]);
+        let mut h = [false; 5];
+        near(&g, -120.0, &mut h);
+        assert_eq!(h, [true, false, false, false, false]);
+    }
+
+    #[test]
+    fn held_out_choice_prefers_the_smooth_truth() {
+        // Two folds; each column responds on its own samples. The residual is a smooth
+        // ramp over three nodes plus alternating noise: the held-out choice must give a
+        // positive removal, and a roughness weight above the smallest tried.
+        let mut cols = Vec::new();
+        let n = 3;
+        let len = 60;
+        for j in 0..n {
+            let c: Vec<f64> = (0..len).map(|t| if t % n == j { 1.0 } else { 0.0 }).collect();
+            cols.push(vec![c]);
+        }
+        let r: Vec<f64> = (0..len).map(|t| (t % n) as f64 + if t % 2 == 0 { 0.3 } else { -0.3 }).collect();
+        let folds: Vec<usize> = (0..len).map(|t| t * 2 / len).collect();
+        let refs: Vec<&Vec<Vec<f64>>> = cols.iter().collect();
+        let nm = normal(&refs, &[r], &[1.0], &folds, 2);
+        let p = vec![1.0, -2.0, 1.0, -2.0, 4.0, -2.0, 1.0, -2.0, 1.0];
+        let (held, _, th) = best_lambda(&nm, &p, &[10.0; 3]);
+        assert!(held > 0.0, "{held}");
+        assert!((th[1] - th[0] - 1.0).abs() < 0.2 && (th[2] - th[1] - 1.0).abs() < 0.2, "{th:?}");
+    }
+}
