@@ -1,15 +1,262 @@
-//! Panic-free numeric helpers for the step.
+//! The scalar the model computes in ([`Real`]), and panic-free numeric helpers.
+//!
+//! The twin's physics is written once, generic over [`Real`]. Two instances:
+//! - `f32`: the twin as it always was. Every operation is the plain IEEE operation in the
+//!   order the source writes it, so the f32 bits (and the golden hashes) do not change.
+//! - [`Fx`] (feature `fixed`): a signed 64-bit fixed-point number with 32 integer and 32
+//!   fractional bits (`fixed::types::I32F32`), for microcontrollers without an FPU. Its
+//!   operations saturate and count (see [`Fx`] and `docs/MODEL.md`, "The fixed-point
+//!   twin").
+
+use core::fmt::Debug;
+use core::ops::{Add, AddAssign, Div, Mul, Neg, Sub, SubAssign};
+
+/// The scalar of the twin's step: the four operations, comparisons, and the few
+/// conversions the step needs. Implemented for `f32` and, with feature `fixed`, for [`Fx`].
+pub trait Real:
+    Copy
+    + Debug
+    + PartialEq
+    + PartialOrd
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+    + AddAssign
+    + SubAssign
+{
+    /// 0.
+    const ZERO: Self;
+    /// 1.
+    const ONE: Self;
+    /// A literal or an f32 value (set points, parameters) as this scalar: `v` itself
+    /// for f32; rounded to the nearest representable value for [`Fx`] (NaN to 0).
+    fn lit(v: f32) -> Self;
+    /// A coefficient computed in f64 at construction: `v as f32` for f32 (the rounding
+    /// the twin always used), rounded to the nearest for [`Fx`].
+    fn from_f64(v: f64) -> Self;
+    /// The value as f32 (exact for f32; rounded to nearest for [`Fx`]).
+    fn to_f32(self) -> f32;
+    /// Not NaN and not infinite (always true for [`Fx`]).
+    fn is_finite(self) -> bool;
+    /// `a + b = s + e` exactly: Knuth's TwoSum for f32 (no FMA, the same bits
+    /// everywhere); for [`Fx`], whose sums are exact, `(a + b, 0)`.
+    fn two_sum(a: Self, b: Self) -> (Self, Self);
+}
+
+impl Real for f32 {
+    const ZERO: Self = 0.0;
+    const ONE: Self = 1.0;
+    #[inline(always)]
+    fn lit(v: f32) -> Self {
+        v
+    }
+    #[inline(always)]
+    fn from_f64(v: f64) -> Self {
+        v as f32
+    }
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        self
+    }
+    #[inline(always)]
+    fn is_finite(self) -> bool {
+        f32::is_finite(self)
+    }
+    #[inline(always)]
+    fn two_sum(a: Self, b: Self) -> (Self, Self) {
+        let s = a + b;
+        let bp = s - a;
+        let ap = s - bp;
+        (s, (a - ap) + (b - bp))
+    }
+}
 
 /// `v` limited to `[lo, hi]`. Unlike `f32::clamp`, no `lo <= hi` assertion (a panic
 /// path the target's step must not link when the bounds are run-time values); the
 /// same bits as `f32::clamp` whenever `lo <= hi`, and a NaN `v` passes through.
 #[inline(always)]
-pub(crate) fn clamp(v: f32, lo: f32, hi: f32) -> f32 {
+pub(crate) fn clamp<R: Real>(v: R, lo: R, hi: R) -> R {
     if v < lo {
         lo
     } else if v > hi {
         hi
     } else {
         v
+    }
+}
+
+#[cfg(feature = "fixed")]
+pub use fx::{saturations, Fx};
+
+#[cfg(feature = "fixed")]
+mod fx {
+    use super::Real;
+    use core::ops::{Add, AddAssign, Div, Mul, Neg, Sub, SubAssign};
+    use core::sync::atomic::{AtomicU32, Ordering};
+    use fixed::types::I32F32;
+
+    /// Operations that saturated since the program started (all threads).
+    static SATURATIONS: AtomicU32 = AtomicU32::new(0);
+
+    /// How many [`Fx`] operations have saturated so far in this program: an addition,
+    /// subtraction, product or quotient beyond ±2^31, a division by zero, or an f32/f64
+    /// value out of range converted. The twin's valid inputs never do (the property
+    /// test asserts it); a count above zero means a result was clipped, not wrapped.
+    pub fn saturations() -> u32 {
+        SATURATIONS.load(Ordering::Relaxed)
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn saturated() {
+        SATURATIONS.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// The fixed-point scalar: `fixed::types::I32F32`, range ±2^31 (±2.1e9), resolution
+    /// 2^-32 (2.3e-10), the same format for every signal (why: `docs/MODEL.md`).
+    ///
+    /// Every operation saturates: a result beyond the range is clipped to the nearest
+    /// end and counted ([`saturations`]); a wrapped result would flip a sign and send the
+    /// twin somewhere physically impossible, a clipped one stays the closest value. A
+    /// division by zero gives the end of the range in the numerator's sign (0 for 0 / 0),
+    /// as IEEE gives an infinity; it is counted too. No operation can panic. Products
+    /// round down (towards −∞) and quotients towards zero, as `fixed` does; sums are
+    /// exact.
+    #[derive(Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+    pub struct Fx(pub I32F32);
+
+    impl core::fmt::Debug for Fx {
+        fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+            core::fmt::Display::fmt(&self.0, f)
+        }
+    }
+
+    impl Fx {
+        /// The value of raw bits (a value times 2^32), for tables generated by `build.rs`.
+        pub const fn from_bits(bits: i64) -> Self {
+            Fx(I32F32::from_bits(bits))
+        }
+
+        /// The raw bits (the value times 2^32).
+        pub const fn to_bits(self) -> i64 {
+            self.0.to_bits()
+        }
+
+        #[inline(always)]
+        fn clip(positive: bool) -> Self {
+            saturated();
+            Fx(if positive { I32F32::MAX } else { I32F32::MIN })
+        }
+    }
+
+    impl Add for Fx {
+        type Output = Fx;
+        #[inline(always)]
+        fn add(self, r: Fx) -> Fx {
+            match self.0.checked_add(r.0) {
+                Some(v) => Fx(v),
+                None => Fx::clip(r.0 > I32F32::ZERO),
+            }
+        }
+    }
+
+    impl Sub for Fx {
+        type Output = Fx;
+        #[inline(always)]
+        fn sub(self, r: Fx) -> Fx {
+            match self.0.checked_sub(r.0) {
+                Some(v) => Fx(v),
+                None => Fx::clip(r.0 < I32F32::ZERO),
+            }
+        }
+    }
+
+    impl Mul for Fx {
+        type Output = Fx;
+        #[inline(always)]
+        fn mul(self, r: Fx) -> Fx {
+            match self.0.checked_mul(r.0) {
+                Some(v) => Fx(v),
+                None => Fx::clip((self.0 < I32F32::ZERO) == (r.0 < I32F32::ZERO)),
+            }
+        }
+    }
+
+    impl Div for Fx {
+        type Output = Fx;
+        #[inline(always)]
+        fn div(self, r: Fx) -> Fx {
+            if r.0 == I32F32::ZERO {
+                if self.0 == I32F32::ZERO {
+                    saturated();
+                    return Fx(I32F32::ZERO);
+                }
+                return Fx::clip(self.0 > I32F32::ZERO);
+            }
+            match self.0.checked_div(r.0) {
+                Some(v) => Fx(v),
+                None => Fx::clip((self.0 < I32F32::ZERO) == (r.0 < I32F32::ZERO)),
+            }
+        }
+    }
+
+    impl Neg for Fx {
+        type Output = Fx;
+        #[inline(always)]
+        fn neg(self) -> Fx {
+            match self.0.checked_neg() {
+                Some(v) => Fx(v),
+                None => Fx::clip(true),
+            }
+        }
+    }
+
+    impl AddAssign for Fx {
+        #[inline(always)]
+        fn add_assign(&mut self, r: Fx) {
+            *self = *self + r;
+        }
+    }
+
+    impl SubAssign for Fx {
+        #[inline(always)]
+        fn sub_assign(&mut self, r: Fx) {
+            *self = *self - r;
+        }
+    }
+
+    impl Real for Fx {
+        const ZERO: Self = Fx(I32F32::ZERO);
+        const ONE: Self = Fx(I32F32::ONE);
+        #[inline(always)]
+        fn lit(v: f32) -> Self {
+            match I32F32::checked_from_num(v) {
+                Some(x) => Fx(x),
+                None if v.is_nan() => Fx::ZERO,
+                None => Fx::clip(v > 0.0),
+            }
+        }
+        #[inline]
+        fn from_f64(v: f64) -> Self {
+            match I32F32::checked_from_num(v) {
+                Some(x) => Fx(x),
+                None if v.is_nan() => Fx::ZERO,
+                None => Fx::clip(v > 0.0),
+            }
+        }
+        #[inline]
+        fn to_f32(self) -> f32 {
+            self.0.to_num::<f32>()
+        }
+        #[inline(always)]
+        fn is_finite(self) -> bool {
+            true
+        }
+        #[inline(always)]
+        fn two_sum(a: Self, b: Self) -> (Self, Self) {
+            (a + b, Fx::ZERO)
+        }
     }
 }
