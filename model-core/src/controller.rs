@@ -89,7 +89,10 @@ pub fn torque_limit<R: Real>(p: &Params<R>, speed: R) -> R {
 #[inline]
 fn limit<R: Real>(torque_max: R, power_max: R, speed: R) -> R {
     let w = if speed < R::ZERO { -speed } else { speed };
-    let by_power = if w > R::ZERO { power_max / w } else { torque_max };
+    // Below 1e-6 of the power limit in rad/s (w 1e6 <= P) the power limit is beyond a
+    // million N m, above any torque limit, so the torque limit holds there: the same
+    // result as dividing, without a quotient beyond the fixed-point range.
+    let by_power = if w > R::ZERO && w * R::lit(1e6) > power_max { power_max / w } else { torque_max };
     if by_power < torque_max {
         by_power
     } else {

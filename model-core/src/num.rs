@@ -260,3 +260,31 @@ mod fx {
         }
     }
 }
+
+#[cfg(all(test, feature = "fixed"))]
+mod tests {
+    use super::*;
+
+    /// Saturation clips to the nearest end and is counted; in-range results are exact
+    /// (sums) or rounded as documented (products down, quotients towards zero).
+    #[test]
+    fn fixed_point_saturates_counts_and_never_panics() {
+        let big = Fx::lit(2.0e9);
+        let before = saturations();
+        assert_eq!(big + big, Fx(fixed::types::I32F32::MAX));
+        assert_eq!(-big - big, Fx(fixed::types::I32F32::MIN));
+        assert_eq!(big * -big, Fx(fixed::types::I32F32::MIN));
+        assert_eq!(Fx::ONE / Fx::ZERO, Fx(fixed::types::I32F32::MAX));
+        assert_eq!(-Fx::ONE / Fx::ZERO, Fx(fixed::types::I32F32::MIN));
+        assert_eq!(Fx::ZERO / Fx::ZERO, Fx::ZERO);
+        assert_eq!(Fx::lit(f32::INFINITY), Fx(fixed::types::I32F32::MAX));
+        assert_eq!(Fx::lit(f32::NAN), Fx::ZERO);
+        assert!(saturations() >= before + 7);
+        assert_eq!(Fx::lit(1.5) + Fx::lit(0.25), Fx::lit(1.75));
+        assert_eq!(Fx::lit(3.0) * Fx::lit(-0.5), Fx::lit(-1.5));
+        assert_eq!(Fx::from_bits(1) * Fx::lit(-0.5), Fx::from_bits(-1), "products round down");
+        assert_eq!(Fx::from_bits(-1) / Fx::lit(2.0), Fx::ZERO, "quotients round towards zero");
+        assert_eq!(Fx::two_sum(Fx::lit(2.5), Fx::from_bits(1)), (Fx::from_bits((5 << 31) + 1), Fx::ZERO));
+        assert_eq!(Fx::lit(0.1).to_f32(), 0.1);
+    }
+}

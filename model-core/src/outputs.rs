@@ -105,8 +105,8 @@ pub struct Outputs<R = f32> {
 }
 
 impl<R: Real> Outputs<R> {
-    /// All channels 0 at time 0.
-    pub(crate) fn zero() -> Self {
+    /// All channels 0 at time 0 (for f32 the same as `default()`).
+    pub fn zero() -> Self {
         Self { t_us: 0, values: [R::ZERO; N_CHANNELS] }
     }
 
