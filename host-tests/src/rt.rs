@@ -78,6 +78,13 @@ pub const BUDGET_STEP_INSNS: u32 = 5_000;
 pub const BUDGET_FLASH: u64 = 64 * 1024;
 /// CI budget: RAM (`.data`, `.bss` and the stack high-water mark).
 pub const BUDGET_RAM: u64 = 16 * 1024;
+/// CI budget: worst instructions per `simrod_step` call of the fixed-point twin on the
+/// Cortex-M3 (generous: about 1.8x the worst measured, 27,858 on TP07; see
+/// `tests/firmware_budget.rs`).
+pub const BUDGET_M3_STEP_INSNS: u32 = 50_000;
+/// CI budget: the M3 fixed-point bench firmware's flash (its tables are twice the f32
+/// ones, its 64-bit arithmetic is inlined).
+pub const BUDGET_M3_FLASH: u64 = 192 * 1024;
 /// Aim (reported, not enforced): worst instructions per step.
 pub const AIM_STEP_INSNS: u32 = 3_000;
 /// Aim: RAM including the stack.
@@ -590,10 +597,22 @@ impl std::fmt::Display for LoopStats {
 /// Run the bench loop (`firmware` ELF) on `profile` with a tick of `tick_us` under
 /// `-icount shift=LOOP_SHIFT` in `cwd`; its statistics frame.
 pub fn run_loop(elf: &Path, cwd: &Path, profile: Builtin, tick_us: u32) -> Result<LoopStats, String> {
+    run_loop_on(&M4F, elf, cwd, profile, tick_us)
+}
+
+/// [`run_loop`] on the board of `mcu`.
+pub fn run_loop_on(
+    mcu: &Mcu,
+    elf: &Path,
+    cwd: &Path,
+    profile: Builtin,
+    tick_us: u32,
+) -> Result<LoopStats, String> {
     let shift = format!("shift={LOOP_SHIFT},sleep=off");
     let args = [format!("profile={}", profile.name()), format!("tick_us={tick_us}")];
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    run_qemu(elf, cwd, &["-icount", &shift, "-serial", "file:uart.bin"], &args, Duration::from_secs(600))?;
+    let extra = ["-icount", &shift, "-serial", "file:uart.bin"];
+    run_qemu_on(mcu, elf, cwd, &extra, &args, Duration::from_secs(600))?;
     let bytes = fs::read(cwd.join("uart.bin")).map_err(|e| format!("UART capture: {e}"))?;
     let stats = protocol::frames(&bytes)
         .filter(|(k, _)| *k == protocol::KIND_STATS)

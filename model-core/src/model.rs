@@ -222,6 +222,27 @@ impl Model<'static> {
     }
 }
 
+/// The public step of each instance is a concrete (non-generic) function, so its code,
+/// and the generic step's instantiation it calls, are generated here in model-core with
+/// model-core's optimisation level, not in the calling crate's (the firmware is built for
+/// size, which costs the step about a third more instructions).
+impl Model<'_, f32> {
+    /// Advance one step with set points held over it; returns the outputs at the end.
+    #[inline(never)]
+    pub fn step(&mut self, inp: &Inputs) -> Outputs {
+        self.advance(inp)
+    }
+}
+
+#[cfg(feature = "fixed")]
+impl Model<'_, crate::num::Fx> {
+    /// Advance one step of the fixed-point twin; returns the outputs at the end.
+    #[inline(never)]
+    pub fn step(&mut self, inp: &Inputs) -> Outputs<crate::num::Fx> {
+        self.advance(inp)
+    }
+}
+
 #[cfg(feature = "fixed")]
 impl Model<'static, crate::num::Fx> {
     /// The fixed-point twin ([`crate::num::Fx`]) on the maps compiled into the binary in
@@ -384,7 +405,8 @@ impl<'a, R: Real> Model<'a, R> {
     }
 
     /// Advance one step with set points held over it; returns the outputs at the end.
-    pub fn step(&mut self, inp: &Inputs) -> Outputs<R> {
+    /// The one body of the step for every scalar; callers use [`Model::step`].
+    pub(crate) fn advance(&mut self, inp: &Inputs) -> Outputs<R> {
         probe!(self, RateLogic);
         let (c, s) = (&self.c, &mut self.s);
         let p = c.p;

@@ -51,7 +51,7 @@ impl<'a, R: Real> Simulation<'a, R> {
             return None;
         }
         let inp = self.inputs();
-        Some(self.model.step(&inp))
+        Some(self.model.advance(&inp))
     }
 
     /// The model.

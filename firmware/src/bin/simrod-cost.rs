@@ -37,7 +37,7 @@ const RECORD_WORDS: usize = protocol::COST_FIXED_WORDS + 2 * N_BLOCKS;
 /// Steps buffered per semihosting write.
 const BATCH: usize = 128;
 /// Bytes painted below the stack pointer before each step.
-const STACK_WINDOW: usize = 2048;
+const STACK_WINDOW: usize = 4096;
 const STACK_PAINT: u32 = 0x5354_4b21;
 type Out = HostOut<{ 4 * RECORD_WORDS * BATCH }>;
 
