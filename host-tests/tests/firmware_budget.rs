@@ -15,7 +15,7 @@
 //! The FPU-less Cortex-M3 (issue 15): the same cost binary counts the fixed-point twin
 //! and, for comparison, the f32 twin in soft-float on the same core; the table is
 //! printed, the fixed-point build's worst step is held to `rt::BUDGET_M3_STEP_INSNS` and
-//! its bench firmware to `rt::BUDGET_M3_FLASH` and `rt::BUDGET_RAM`.
+//! its bench firmware to `rt::BUDGET_M3_FLASH` and `rt::BUDGET_M3_RAM`.
 
 mod firmware_support;
 
@@ -166,7 +166,7 @@ fn m3_fixed_point_firmware_fits_flash_and_ram_budget() {
         f.flash(),
         rt::BUDGET_M3_FLASH,
         f.static_ram(),
-        rt::BUDGET_RAM
+        rt::BUDGET_M3_RAM
     );
     assert!(
         f.flash() <= rt::BUDGET_M3_FLASH,
@@ -174,6 +174,6 @@ fn m3_fixed_point_firmware_fits_flash_and_ram_budget() {
         f.flash(),
         rt::BUDGET_M3_FLASH
     );
-    assert!(ram <= rt::BUDGET_RAM, "M3 firmware RAM {ram} B > budget {} B: {stats}", rt::BUDGET_RAM);
+    assert!(ram <= rt::BUDGET_M3_RAM, "M3 firmware RAM {ram} B > budget {} B: {stats}", rt::BUDGET_M3_RAM);
     assert_eq!(stats.get("overruns"), 0, "{stats}");
 }

@@ -162,8 +162,11 @@ impl<R: Real> SideDisc<R> {
             for (dij, xj) in drow.iter().zip(h0.iter()) {
                 inc += *dij * *xj;
             }
-            for (pij, lj) in prow.iter().zip(l0.iter()) {
-                inc += *pij * *lj;
+            // With exact sums the low parts are 0 (`Real::EXACT_SUM`): Φ lo adds nothing.
+            if !R::EXACT_SUM {
+                for (pij, lj) in prow.iter().zip(l0.iter()) {
+                    inc += *pij * *lj;
+                }
             }
             inc += grow[0] * u[0];
             inc += grow[1] * u[1];

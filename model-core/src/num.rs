@@ -30,6 +30,9 @@ pub trait Real:
     const ZERO: Self;
     /// 1.
     const ONE: Self;
+    /// Sums are exact (fixed point): [`Real::two_sum`]'s error term is always 0, so the
+    /// low parts of compensated sums stay 0 and products with them can be skipped.
+    const EXACT_SUM: bool;
     /// A literal or an f32 value (set points, parameters) as this scalar: `v` itself
     /// for f32; rounded to the nearest representable value for [`Fx`] (NaN to 0).
     fn lit(v: f32) -> Self;
@@ -48,6 +51,7 @@ pub trait Real:
 impl Real for f32 {
     const ZERO: Self = 0.0;
     const ONE: Self = 1.0;
+    const EXACT_SUM: bool = false;
     #[inline(always)]
     fn lit(v: f32) -> Self {
         v
@@ -291,6 +295,7 @@ mod fx {
     impl Real for Fx {
         const ZERO: Self = Fx(I32F32::ZERO);
         const ONE: Self = Fx(I32F32::ONE);
+        const EXACT_SUM: bool = true;
         #[inline(always)]
         fn lit(v: f32) -> Self {
             match I32F32::checked_from_num(v) {
