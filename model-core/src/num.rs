@@ -193,40 +193,89 @@ mod fx {
         i64::try_from(q).ok()
     }
 
-    /// `I32F32::checked_div` on the bits for a non-zero divisor: the quotient
-    /// `(a 2^32) / b` truncated towards zero, `None` beyond i64. `fixed` computes it as
-    /// a 128-bit division, which a 32-bit core (no 128-bit division routine) expands
-    /// into a 128-step bit loop; here two 64-bit divisions and, for |b| >= 1, a
-    /// normalised quotient estimate with at most two corrections (Knuth, TAOCP 4.3.1,
-    /// algorithm D). Tested against `checked_div`.
+    /// `(u1 2^32 + u0) / v` and its remainder for `u1 < v` (the quotient fits 32 bits),
+    /// from two 32-bit hardware divisions on 16-bit digits (Hacker's Delight 9-3,
+    /// `divlu`). A 64-bit division routine on a 32-bit core is a bit loop instead.
     #[inline]
-    pub(crate) fn div_bits(a: i64, b: i64) -> Option<i64> {
-        use core::num::NonZeroU64;
-        let n = a.unsigned_abs();
-        // Divisions by `NonZeroU64`: no division-by-zero panic path in the step.
-        let d = NonZeroU64::new(b.unsigned_abs())?;
-        // |a| 2^32 / d = q1 2^32 + (r1 2^32) / d, with r1 < d.
-        let (q1, r1) = (n / d, n % d);
-        if q1 >> 32 != 0 {
-            return None;
-        }
-        let q2 = if d.get() >> 32 == 0 {
-            (r1 << 32) / d
-        } else {
-            // d >= 2^32: normalise so d's top bit is set (r1 < d keeps r1 << s in range).
-            let s = d.leading_zeros();
-            let (dn, rn) = (d.get() << s, r1 << s);
-            let dh = NonZeroU64::new(dn >> 32)?;
-            let mut q = (rn / dh).min(u64::from(u32::MAX));
-            let num = u128::from(rn) << 32;
-            let mut prod = u128::from(q) * u128::from(dn);
-            while prod > num {
+    pub(crate) fn divlu(u1: u32, u0: u32, v: core::num::NonZeroU32) -> (u32, u32) {
+        const B: u32 = 1 << 16;
+        let s = v.leading_zeros();
+        let v = v.get() << s;
+        // Normalised: the top bit of v is set, so its high digit is not 0.
+        let (vn1, vn0) = (v >> 16, v & 0xffff);
+        let Some(d1) = core::num::NonZeroU32::new(vn1) else { return (u32::MAX, 0) };
+        let un32 = if s == 0 { u1 } else { (u1 << s) | (u0 >> (32 - s)) };
+        let un10 = u0 << s;
+        let (un1, un0) = (un10 >> 16, un10 & 0xffff);
+        // One 16-bit quotient digit of (hi 2^16 + lo) / v, corrected at most twice.
+        let digit = |hi: u32, lo: u32| {
+            let (mut q, mut rhat) = (hi / d1, hi % d1);
+            while q >= B || q * vn0 > (rhat << 16) + lo {
                 q -= 1;
-                prod -= u128::from(dn);
+                rhat += vn1;
+                if rhat >= B {
+                    break;
+                }
             }
             q
         };
-        let m = (q1 << 32) | q2;
+        let q1 = digit(un32, un1);
+        let un21 = (un32 << 16).wrapping_add(un1).wrapping_sub(q1.wrapping_mul(v));
+        let q0 = digit(un21, un0);
+        let r = (un21 << 16).wrapping_add(un0).wrapping_sub(q0.wrapping_mul(v)) >> s;
+        ((q1 << 16) | q0, r)
+    }
+
+    /// One base-2^32 quotient digit of `(top 2^32 + next) / dn` for a normalised `dn`
+    /// (top bit set) and `top < dn`, and the remainder (Knuth, TAOCP 4.3.1, algorithm D:
+    /// the estimate from the divisor's high digit is at most 2 too large).
+    #[inline]
+    fn digit64(top: u64, next: u32, dn: u64) -> (u32, u64) {
+        let dh = (dn >> 32) as u32;
+        let (th, tl) = ((top >> 32) as u32, top as u32);
+        let mut q = match core::num::NonZeroU32::new(dh) {
+            Some(d) if th < dh => divlu(th, tl, d).0,
+            _ => u32::MAX,
+        };
+        let num = (u128::from(top) << 32) | u128::from(next);
+        let mut prod = u128::from(q) * u128::from(dn);
+        while prod > num {
+            q -= 1;
+            prod -= u128::from(dn);
+        }
+        (q, (num - prod) as u64)
+    }
+
+    /// `I32F32::checked_div` on the bits for a non-zero divisor: the quotient
+    /// `(a 2^32) / b` truncated towards zero, `None` beyond i64. `fixed` computes it as
+    /// a 128-bit division, which a 32-bit core (no 128-bit division routine) expands
+    /// into a 128-step bit loop, and a 64-bit one is a bit loop too; here the quotient's
+    /// two base-2^32 digits come from the core's 32-bit divisions ([`divlu`], Knuth's
+    /// algorithm D for divisors of two digits). Tested against `checked_div`.
+    #[inline]
+    pub(crate) fn div_bits(a: i64, b: i64) -> Option<i64> {
+        let n = a.unsigned_abs();
+        let d = b.unsigned_abs();
+        let (nh, nl) = ((n >> 32) as u32, n as u32);
+        // |a| 2^32 / d, the dividend's digits (nh, nl, 0).
+        let m = if d >> 32 == 0 {
+            let d32 = core::num::NonZeroU32::new(d as u32)?;
+            if nh >= d32.get() {
+                return None;
+            }
+            let (q1, r) = divlu(nh, nl, d32);
+            let (q0, _) = divlu(r, 0, d32);
+            (u64::from(q1) << 32) | u64::from(q0)
+        } else {
+            // Two-digit divisor, normalised; the dividend shifted alike is (n2, n1, n0, 0)
+            // with (n2, n1) < dn because |a| < 2^63 <= d 2^32.
+            let s = d.leading_zeros();
+            let dn = d << s;
+            let top = if s == 0 { 0 } else { n >> (64 - s) };
+            let (q1, r) = digit64((top << 32) | ((n << s) >> 32), (n << s) as u32, dn);
+            let (q0, _) = digit64(r, 0, dn);
+            (u64::from(q1) << 32) | u64::from(q0)
+        };
         if (a < 0) != (b < 0) {
             if m > 1 << 63 {
                 None
@@ -406,6 +455,14 @@ mod tests {
         for _ in 0..2_000_000 {
             let (a, b) = (next(), next());
             check(a, b);
+        }
+        // The 64-by-32 step on its own, against u64 division.
+        for _ in 0..1_000_000 {
+            let v = (next() as u32).max(1);
+            let (u1, u0) = ((next() as u32) % v, next() as u32);
+            let n = (u64::from(u1) << 32) | u64::from(u0);
+            let want = ((n / u64::from(v)) as u32, (n % u64::from(v)) as u32);
+            assert_eq!(super::fx::divlu(u1, u0, core::num::NonZeroU32::new(v).unwrap()), want, "{n} / {v}");
         }
     }
 }
