@@ -69,6 +69,9 @@ pub struct Chain<R = f32> {
     delay: [Slots; N_MEASURED],
     /// Some channel has a lag or a delay (else the step is a calibration only).
     dynamic: bool,
+    /// Every gain 1 and every offset 0: with exact sums (`Real::EXACT_SUM`, fixed point)
+    /// `v 1 + 0` is `v`, and the calibration is skipped.
+    unity: bool,
 }
 
 /// What the chain remembers between steps.
@@ -114,7 +117,8 @@ impl<R: Real> Chain<R> {
         }
         let lag = lag_s.map(|t| Lag::new(t, dt));
         let dynamic = lag.iter().any(Option::is_some) || delay.iter().any(|s| s.len > 0);
-        Self { gain: gain.map(R::lit), offset: offset.map(R::lit), lag, delay, dynamic }
+        let unity = gain.iter().all(|g| *g == 1.0) && offset.iter().all(|k| *k == 0.0);
+        Self { gain: gain.map(R::lit), offset: offset.map(R::lit), lag, delay, dynamic, unity }
     }
 
     /// Each channel's delay in whole steps, as realised.
@@ -125,9 +129,11 @@ impl<R: Real> Chain<R> {
     /// The recorded values of one step from the physical ones, in [`MEASURED`] order.
     #[inline]
     pub fn apply(&self, s: &mut ChainState<R>, raw: &[R; N_MEASURED]) -> [R; N_MEASURED] {
-        let mut out = [R::ZERO; N_MEASURED];
-        for ((o, v), (g, k)) in out.iter_mut().zip(raw).zip(self.gain.iter().zip(&self.offset)) {
-            *o = *v * *g + *k;
+        let mut out = *raw;
+        if !(R::EXACT_SUM && self.unity) {
+            for ((o, v), (g, k)) in out.iter_mut().zip(raw).zip(self.gain.iter().zip(&self.offset)) {
+                *o = *v * *g + *k;
+            }
         }
         if self.dynamic {
             self.lag_and_delay(s, &mut out);

@@ -638,7 +638,7 @@ impl<'a, R: Real> Model<'a, R> {
         o.set(C::ThrottleMapped, mapped);
         o.set(C::SpeedTarget, target);
         o.set(C::SpeedCmd, self.s.cmd_rpm);
-        o.set(C::RateCase, R::lit(f32::from(case as u8)));
+        o.set(C::RateCase, R::from_u8(case as u8));
         o.set(C::SuTTorque, t_motor);
         o.set(C::LoadTorqueL, t_load[0]);
         o.set(C::LoadTorqueR, t_load[1]);

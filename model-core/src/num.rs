@@ -41,6 +41,8 @@ pub trait Real:
     fn from_f64(v: f64) -> Self;
     /// The value as f32 (exact for f32; rounded to nearest for [`Fx`]).
     fn to_f32(self) -> f32;
+    /// A small whole number (exact in both).
+    fn from_u8(n: u8) -> Self;
     /// Not NaN and not infinite (always true for [`Fx`]).
     fn is_finite(self) -> bool;
     /// `a + b = s + e` exactly: Knuth's TwoSum for f32 (no FMA, the same bits
@@ -63,6 +65,10 @@ impl Real for f32 {
     #[inline(always)]
     fn to_f32(self) -> f32 {
         self
+    }
+    #[inline(always)]
+    fn from_u8(n: u8) -> Self {
+        f32::from(n)
     }
     #[inline(always)]
     fn is_finite(self) -> bool {
@@ -364,6 +370,10 @@ mod fx {
         #[inline]
         fn to_f32(self) -> f32 {
             self.0.to_num::<f32>()
+        }
+        #[inline(always)]
+        fn from_u8(n: u8) -> Self {
+            Fx::from_bits(i64::from(n) << 32)
         }
         #[inline(always)]
         fn is_finite(self) -> bool {
