@@ -5,12 +5,15 @@
 //! blocks' constants); `State` holds what the step changes. Each stateful block (PID,
 //! delay line, backlash) is a constants struct with a method
 //! taking its own state struct, called from one place in [`Model::step`].
+//!
+//! The step is written once, generic over the scalar `R: Real` (`crate::num`): f32, and
+//! with feature `fixed` the fixed-point `Fx`. Coefficients are computed in f32/f64 at
+//! construction and converted once (`Real::lit`, `Real::from_f64`).
 
 use crate::backlash::{Backlash, BacklashState};
 use crate::chain::{Chain, ChainState};
 use crate::controller::{PidConfig, PidState};
-use crate::curtis::RateScale;
-use crate::curtis::{self, RateCase};
+use crate::curtis::{self, RateCase, RateScale};
 use crate::data::Maps;
 use crate::delay::{Delay, DelayState};
 use crate::drivetrain::{SideDisc, SideParams, NS, PHI_AF, RAD_S_PER_RPM, RPM_PER_RAD_S, W_A, W_F, W_L};
@@ -126,9 +129,7 @@ struct StepSignals<R> {
 struct Coeffs<R> {
     /// All 2-D maps share one grid: locate each set point once per step.
     shared_grid: bool,
-    /// The parameters as given (f32).
-    p0: Params,
-    /// The parameters in the step's scalar (for f32 the same values).
+    /// The parameters in the step's scalar (for f32 the values given).
     p: Params<R>,
     mode: SpeedTarget,
     dt_us: u32,
@@ -227,6 +228,11 @@ impl Model<'static> {
 /// model-core's optimisation level, not in the calling crate's (the firmware is built for
 /// size, which costs the step about a third more instructions).
 impl Model<'_, f32> {
+    /// Parameters in use.
+    pub fn params(&self) -> &Params {
+        &self.c.p
+    }
+
     /// Advance one step with set points held over it; returns the outputs at the end.
     #[inline(never)]
     pub fn step(&mut self, inp: &Inputs) -> Outputs {
@@ -327,7 +333,6 @@ impl<'a, R: Real> Model<'a, R> {
         };
         let c = Coeffs {
             shared_grid: maps.shared_2d_grid(),
-            p0: *p,
             p: pr,
             mode: cfg.speed_target,
             dt_us: cfg.dt_us,
@@ -381,11 +386,6 @@ impl<'a, R: Real> Model<'a, R> {
     /// Time reached [µs].
     pub fn t_us(&self) -> u64 {
         self.s.t_us
-    }
-
-    /// Parameters in use.
-    pub fn params(&self) -> &Params {
-        &self.c.p0
     }
 
     /// Per-side mechanical parameters in use (after effects).
