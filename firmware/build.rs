@@ -1,7 +1,8 @@
 //! Build script of the firmware.
 //!
-//! 1. Puts the repository's `memory.x` (or `$SIMROD_MEMORY_X`, for another part) on the
-//!    linker search path, where cortex-m-rt's `link.x` includes it.
+//! 1. Puts the memory layout on the linker search path, where cortex-m-rt's `link.x`
+//!    includes it: the repository's `memory.x` (Cortex-M4F), `firmware/m3/memory.x` for
+//!    the Cortex-M3 target (`thumbv7m-none-eabi`), or `$SIMROD_MEMORY_X` for another part.
 //! 2. Fixes the physical effects at build time: `$SIMROD_EFFECTS` names an effects file
 //!    in the workbench's format (model-data's parser: `[effect_id]` sections of
 //!    `param = number` lines, dotted keys, `#` comments), checked here against
@@ -28,9 +29,14 @@ fn main() {
     let out = PathBuf::from(env::var("OUT_DIR").expect("set by cargo"));
 
     println!("cargo:rerun-if-env-changed=SIMROD_MEMORY_X");
-    let memory = env::var_os("SIMROD_MEMORY_X")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| manifest.join("..").join("memory.x"));
+    let target = env::var("TARGET").unwrap_or_default();
+    let memory = env::var_os("SIMROD_MEMORY_X").map(PathBuf::from).unwrap_or_else(|| {
+        if target.starts_with("thumbv7m-") {
+            manifest.join("m3").join("memory.x")
+        } else {
+            manifest.join("..").join("memory.x")
+        }
+    });
     println!("cargo:rerun-if-changed={}", memory.display());
     fs::copy(&memory, out.join("memory.x"))
         .unwrap_or_else(|e| panic!("{}: cannot read: {e}", memory.display()));

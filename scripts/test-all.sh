@@ -7,8 +7,9 @@ cd "$(dirname "$0")/.."
 step() { printf '\n==> %s\n' "$*"; }
 as_root() { if [ "$(id -u)" = 0 ]; then "$@"; else sudo "$@"; fi; }
 
-step "set-up: Cortex-M4F target, QEMU, /usr/bin/time (peak memory), Chromium (check --html)"
+step "set-up: Cortex-M4F and Cortex-M3 targets, QEMU, /usr/bin/time (peak memory), Chromium (check --html)"
 rustup target list --installed | grep -qx thumbv7em-none-eabihf || rustup target add thumbv7em-none-eabihf
+rustup target list --installed | grep -qx thumbv7m-none-eabi || rustup target add thumbv7m-none-eabi
 if ! command -v qemu-system-arm >/dev/null; then
   as_root apt-get update -qq
   as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq qemu-system-arm
@@ -31,16 +32,22 @@ cargo fmt --all -- --check
 step "lints (clippy, all targets, warnings are errors)"
 cargo clippy --all-targets -- -D warnings
 cargo clippy -p model-core --target thumbv7em-none-eabihf -- -D warnings
+cargo clippy -p model-core --features fixed --target thumbv7m-none-eabi -- -D warnings
 
 step "model-core and the xDT build for the target without std or alloc"
 cargo build -p model-core --target thumbv7em-none-eabihf
 cargo build -p model-core --target thumbv7em-none-eabihf --features defmt
 cargo build -p model-core --target thumbv7em-none-eabihf --features profile-hooks
+cargo build -p model-core --target thumbv7m-none-eabi --features fixed
 cargo build -p simrod-xdt --target thumbv7em-none-eabihf
 cargo clippy -p simrod-xdt --target thumbv7em-none-eabihf -- -D warnings
 
-step "firmware builds"
+step "firmware builds (Cortex-M4F; Cortex-M3 fixed point and soft-float)"
 cargo build -p firmware --release --target thumbv7em-none-eabihf
+M3_BINS=(--bin firmware --bin simrod-trace --bin simrod-cost)
+cargo build -p firmware --release --target thumbv7m-none-eabi --features fixed "${M3_BINS[@]}"
+cargo clippy -p firmware --release --target thumbv7m-none-eabi --features fixed "${M3_BINS[@]}" -- -D warnings
+cargo build -p firmware --release --target thumbv7m-none-eabi "${M3_BINS[@]}"
 
 step "FMU validators: Python environment (FMPy, FMU Manipulation Toolbox; scripts/py-env.sh) and valgrind"
 scripts/py-env.sh

@@ -14,6 +14,7 @@ use model_core::{Model, Outputs};
 use crate::clock::{self, CycleCounter};
 use crate::io::{OutputSink, SetPointSource};
 use crate::step::simrod_step;
+use crate::Scalar;
 
 /// Timing of the loop.
 #[derive(Debug, Clone, Copy)]
@@ -54,7 +55,7 @@ fn worth_logging(events: u32) -> bool {
 /// Run until the source ends. SysTick must already be running with `cfg.period_cycles`
 /// and its handler calling [`clock::on_tick`].
 pub fn run<S, O, P, C>(
-    model: &mut Model<'static>,
+    model: &mut Model<'static, Scalar>,
     source: &mut S,
     sink: &mut O,
     status: &mut P,
@@ -68,7 +69,7 @@ where
     C: CycleCounter,
 {
     let mut stats = Stats::default();
-    let mut out = Outputs::default();
+    let mut out = Outputs::zero();
     let mut expected = clock::ticks().wrapping_add(1);
     let mut flagged = false;
     let mut events = 0u32; // steps flagged late or overrun

@@ -3,7 +3,7 @@
 //! stream, or whatever a port adds (CAN, analog inputs...).
 
 use embedded_io::{Read, ReadReady, Write, WriteReady};
-use model_core::{Channel, Inputs, Outputs, Profile, SetPoints};
+use model_core::{Channel, Inputs, Outputs, Profile, Real, SetPoints};
 
 use crate::protocol::{self, Decoder, Frame};
 use crate::step::simrod_profile_at;
@@ -94,7 +94,7 @@ impl<R: Read + ReadReady> SetPointSource for SerialSource<R> {
 /// A consumer of the step outputs.
 pub trait OutputSink {
     /// Queue one step's outputs; must not block.
-    fn push(&mut self, out: &Outputs);
+    fn push(&mut self, out: &Outputs<crate::Scalar>);
     /// Move queued bytes towards the link while the loop is idle; true while
     /// something is still queued.
     fn poll(&mut self) -> bool;
@@ -146,12 +146,13 @@ impl<W: Write + WriteReady> SerialSink<W> {
 }
 
 impl<W: Write + WriteReady> OutputSink for SerialSink<W> {
-    fn push(&mut self, out: &Outputs) {
+    fn push(&mut self, out: &Outputs<crate::Scalar>) {
         if self.pos < self.len {
             self.dropped = self.dropped.wrapping_add(1);
             return;
         }
-        let values = self.channels.iter().map(|c| out.get(*c));
+        // The stream carries f32 (the fixed-point twin's values rounded to f32).
+        let values = self.channels.iter().map(|c| out.get(*c).to_f32());
         match protocol::encode_outputs_with(self.seq, out.t_us, values, self.channels.len(), &mut self.buf) {
             Some(len) => {
                 self.len = len;

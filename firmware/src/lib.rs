@@ -1,4 +1,4 @@
-//! # SimRod twin firmware (Cortex-M4F)
+//! # SimRod twin firmware (Cortex-M4F; Cortex-M3 without an FPU)
 //!
 //! The `model-core` twin at the bench rate on a microcontroller: a periodic tick runs
 //! one step, set points come from the built-in profile in flash or from a serial
@@ -13,6 +13,12 @@
 //! Default board: QEMU `mps2-an386` ([`board`]). Logging: defmt over semihosting
 //! (feature `qemu`) or RTT (feature `rtt`). Effects, profile and rate set are fixed at
 //! build time (see `build.rs`).
+//!
+//! The same crate builds for an FPU-less Cortex-M3 (`--target thumbv7m-none-eabi`, QEMU
+//! `mps2-an385`, memory layout `firmware/m3/memory.x`): with feature `fixed` the twin
+//! runs in fixed point ([`Scalar`] = `model_core::Fx`), without it in soft-float f32
+//! (the cost comparison). The bench loop, trace and cost modes are the same code for
+//! every build; `simrod-xil` (the f32 xDT) is built for the f32 twin only.
 
 #![no_std]
 
@@ -35,7 +41,46 @@ pub mod io;
 pub mod protocol;
 pub mod step;
 
-use model_core::{Config, CouplingStiffness, Effects, Params, RateSet, SpeedTarget};
+use model_core::{Config, ConfigError, CouplingStiffness, Effects, Model, Params, RateSet, SpeedTarget};
+
+/// The twin's scalar in this build: f32 (the M4F's FPU, or soft-float on the M3).
+#[cfg(not(feature = "fixed"))]
+pub type Scalar = f32;
+/// The twin's scalar in this build: fixed point (feature `fixed`, the M3 build).
+#[cfg(feature = "fixed")]
+pub type Scalar = model_core::Fx;
+
+/// Bytes of one value in the trace and cost streams: an f32's bits, or an `Fx`'s.
+pub const VALUE_BYTES: usize = core::mem::size_of::<Scalar>();
+
+/// The trace file's magic for this build's scalar.
+#[cfg(not(feature = "fixed"))]
+pub const TRACE_MAGIC: [u8; 8] = protocol::TRACE_MAGIC;
+/// The trace file's magic for this build's scalar.
+#[cfg(feature = "fixed")]
+pub const TRACE_MAGIC: [u8; 8] = protocol::TRACE_MAGIC_FX;
+
+/// A value's little-endian bits (an f32's `to_bits`, an `Fx`'s I32F32 bits).
+#[inline]
+pub fn value_le(v: Scalar) -> [u8; VALUE_BYTES] {
+    v.to_bits().to_le_bytes()
+}
+
+/// FNV-1a 64 over the little-endian bits of `values` (for f32 exactly
+/// `Fnv1a64::write_f32s`).
+pub fn hash_values(h: &mut protocol::Fnv1a64, values: &[Scalar]) {
+    for v in values {
+        h.write(&value_le(*v));
+    }
+}
+
+/// The twin of this build on its built-in maps: f32, or fixed point (`fixed`).
+pub fn new_model(cfg: &Config) -> Result<Model<'static, Scalar>, ConfigError> {
+    #[cfg(not(feature = "fixed"))]
+    return Model::new(cfg);
+    #[cfg(feature = "fixed")]
+    return Model::new_fx(cfg);
+}
 
 mod generated {
     include!(concat!(env!("OUT_DIR"), "/build_effects.rs"));

@@ -122,14 +122,14 @@ fn options() -> (Builtin, bool, u32) {
 /// The model of this build. Its own frame holds the construction's temporaries, gone
 /// before [`serve`]'s buffers exist: the stack peaks here (with `SideDisc::new` below).
 #[inline(never)]
-fn build_model() -> Result<Model<'static>, ConfigError> {
-    Model::new(&firmware::config(firmware::BUILD_RATES))
+fn build_model() -> Result<Model<'static, firmware::Scalar>, ConfigError> {
+    firmware::new_model(&firmware::config(firmware::BUILD_RATES))
 }
 
 /// Set up the I/O, run the loop, report, exit.
 #[inline(never)]
 fn serve(
-    model: &mut Model<'static>,
+    model: &mut Model<'static, firmware::Scalar>,
     cp: &mut cortex_m::Peripherals,
     profile: Builtin,
     xil: bool,

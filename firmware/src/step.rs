@@ -7,10 +7,12 @@
 
 use model_core::{Inputs, Model, Outputs, Profile, SetPoints};
 
+use crate::Scalar;
+
 /// One model step: inputs in, outputs of the step's end out.
 #[inline(never)]
 #[no_mangle]
-pub fn simrod_step(model: &mut Model<'static>, inputs: &Inputs, out: &mut Outputs) {
+pub fn simrod_step(model: &mut Model<'static, Scalar>, inputs: &Inputs, out: &mut Outputs<Scalar>) {
     *out = model.step(inputs);
 }
 

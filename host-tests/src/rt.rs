@@ -25,6 +25,50 @@ pub mod protocol;
 pub const TARGET: &str = "thumbv7em-none-eabihf";
 /// The binaries of the firmware crate.
 pub const BINARIES: [&str; 4] = ["firmware", "simrod-trace", "simrod-cost", "simrod-xil"];
+
+/// One firmware build: the core, its Rust target and QEMU board, and the twin's scalar.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Mcu {
+    /// For reports.
+    pub name: &'static str,
+    pub target: &'static str,
+    /// QEMU `-machine` and `-cpu`.
+    pub machine: &'static str,
+    pub cpu: &'static str,
+    /// The fixed-point twin (`firmware` feature `fixed`), else f32.
+    pub fixed: bool,
+}
+
+/// The Cortex-M4F with its FPU, the f32 twin (QEMU mps2-an386).
+pub const M4F: Mcu = Mcu {
+    name: "Cortex-M4F, f32 (FPU)",
+    target: TARGET,
+    machine: "mps2-an386",
+    cpu: "cortex-m4",
+    fixed: false,
+};
+/// The FPU-less Cortex-M3, the fixed-point twin (QEMU mps2-an385).
+pub const M3_FIXED: Mcu = Mcu {
+    name: "Cortex-M3, fixed point",
+    target: "thumbv7m-none-eabi",
+    machine: "mps2-an385",
+    cpu: "cortex-m3",
+    fixed: true,
+};
+/// The Cortex-M3 running the f32 twin in soft-float: the fixed point's comparison.
+pub const M3_SOFT: Mcu = Mcu { name: "Cortex-M3, f32 soft-float", fixed: false, ..M3_FIXED };
+
+impl Mcu {
+    /// The firmware binaries this build has (`simrod-xil`, the f32 xDT's loop, only on
+    /// the M4F).
+    pub fn binaries(&self) -> &'static [&'static str] {
+        if *self == M4F {
+            &BINARIES
+        } else {
+            &BINARIES[..3]
+        }
+    }
+}
 /// The profiles `simrod-cost` runs, in its order.
 pub const COST_PROFILES: [Builtin; 3] = [Builtin::TP07, Builtin::TP11, Builtin::TP14];
 
@@ -34,6 +78,18 @@ pub const BUDGET_STEP_INSNS: u32 = 5_000;
 pub const BUDGET_FLASH: u64 = 64 * 1024;
 /// CI budget: RAM (`.data`, `.bss` and the stack high-water mark).
 pub const BUDGET_RAM: u64 = 16 * 1024;
+/// CI budget: worst instructions per `simrod_step` call of the fixed-point twin on the
+/// Cortex-M3 (generous: about 2x the worst measured, 17,415 on TP07; see
+/// `tests/firmware_budget.rs`).
+pub const BUDGET_M3_STEP_INSNS: u32 = 36_000;
+/// CI budget: the M3 fixed-point bench firmware's flash (its tables are twice the f32
+/// ones, its 64-bit arithmetic is inlined).
+pub const BUDGET_M3_FLASH: u64 = 192 * 1024;
+/// CI budget: the M3 fixed-point bench firmware's RAM (static + stack high-water). Its
+/// peak is `Model::new_fx`: the model in 64-bit values (the delay lines alone 3 KiB) and
+/// the discretization's f64 temporaries; the part declared (`firmware/m3/memory.x`) has
+/// 128 KiB.
+pub const BUDGET_M3_RAM: u64 = 24 * 1024;
 /// Aim (reported, not enforced): worst instructions per step.
 pub const AIM_STEP_INSNS: u32 = 3_000;
 /// Aim: RAM including the stack.
@@ -76,12 +132,29 @@ pub fn firmware_target_dir(sub: &str) -> PathBuf {
 /// A nested `cargo build`: the `cargo test` running the tests holds the lock of the
 /// workspace's own build directory.
 pub fn build_firmware(variant: &str, effects: Option<&Path>, features: &[&str]) -> Result<PathBuf, String> {
+    build_firmware_on(&M4F, variant, effects, features)
+}
+
+/// [`build_firmware`] for the core `mcu` (its target, its binaries, feature `fixed` for
+/// the fixed-point twin).
+pub fn build_firmware_on(
+    mcu: &Mcu,
+    variant: &str,
+    effects: Option<&Path>,
+    features: &[&str],
+) -> Result<PathBuf, String> {
     let target_dir = firmware_target_dir("build");
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let mut cmd = Command::new(cargo);
-    cmd.current_dir(root())
-        .args(["build", "-p", "firmware", "--release", "--bins", "--target", TARGET])
-        .arg("--target-dir")
+    cmd.current_dir(root()).args(["build", "-p", "firmware", "--release", "--target", mcu.target]);
+    for bin in mcu.binaries() {
+        cmd.args(["--bin", bin]);
+    }
+    let mut features = features.to_vec();
+    if mcu.fixed {
+        features.push("fixed");
+    }
+    cmd.arg("--target-dir")
         .arg(&target_dir)
         // Only what .cargo/config.toml and the manifests say may shape the build.
         .env_remove("RUSTFLAGS")
@@ -105,10 +178,10 @@ pub fn build_firmware(variant: &str, effects: Option<&Path>, features: &[&str]) 
             String::from_utf8_lossy(&out.stderr)
         ));
     }
-    let built = target_dir.join(TARGET).join("release");
+    let built = target_dir.join(mcu.target).join("release");
     let dir = firmware_target_dir(variant);
     fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    for bin in BINARIES {
+    for bin in mcu.binaries() {
         fs::copy(built.join(bin), dir.join(bin))
             .map_err(|e| format!("copy {bin} to {}: {e}", dir.display()))?;
     }
@@ -125,6 +198,18 @@ pub fn run_qemu(
     args: &[&str],
     timeout: Duration,
 ) -> Result<(), String> {
+    run_qemu_on(&M4F, elf, cwd, extra, args, timeout)
+}
+
+/// [`run_qemu`] on the board of `mcu`.
+pub fn run_qemu_on(
+    mcu: &Mcu,
+    elf: &Path,
+    cwd: &Path,
+    extra: &[&str],
+    args: &[&str],
+    timeout: Duration,
+) -> Result<(), String> {
     let _ = fs::remove_dir_all(cwd);
     fs::create_dir_all(cwd).map_err(|e| format!("{}: {e}", cwd.display()))?;
     let mut semi = String::from("enable=on,target=native,arg=firmware");
@@ -134,7 +219,7 @@ pub fn run_qemu(
     }
     let file = |name: &str| fs::File::create(cwd.join(name)).map_err(|e| format!("{name}: {e}"));
     let mut cmd = Command::new("qemu-system-arm");
-    cmd.args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-display", "none", "-monitor", "none"])
+    cmd.args(["-machine", mcu.machine, "-cpu", mcu.cpu, "-display", "none", "-monitor", "none"])
         .args(["-semihosting-config", &semi]);
     if !extra.contains(&"-serial") {
         cmd.args(["-serial", "null"]);
@@ -174,6 +259,12 @@ pub fn run_qemu(
 /// The host simulation's FNV-1a 64 over every channel of every step of a firmware
 /// run (identified rate set, 1 ms, no effects, 24 V): what the firmware must match.
 pub fn host_hash(which: Builtin) -> u64 {
+    host_hash_on(&M4F, which)
+}
+
+/// [`host_hash`] of the twin `mcu` runs: f32 bits, or the fixed-point twin's I32F32
+/// bits (8 bytes a value).
+pub fn host_hash_on(mcu: &Mcu, which: Builtin) -> u64 {
     let cfg = Config {
         dt_us: STEP_US,
         params: Params::thesis(RateSet::Identified, CouplingStiffness::Identified),
@@ -182,8 +273,16 @@ pub fn host_hash(which: Builtin) -> u64 {
     };
     let profile = Profile::builtin(which, 1.0, 1.0).expect("built-in profile");
     let mut h = protocol::Fnv1a64::default();
-    for o in Simulation::new(&cfg, profile, SUPPLY_V).expect("valid config") {
-        h.write_f32s(&o.values);
+    if mcu.fixed {
+        for o in Simulation::new_fx(&cfg, profile, SUPPLY_V).expect("valid config") {
+            for v in o.values {
+                h.write(&v.to_bits().to_le_bytes());
+            }
+        }
+    } else {
+        for o in Simulation::new(&cfg, profile, SUPPLY_V).expect("valid config") {
+            h.write_f32s(&o.values);
+        }
     }
     h.0
 }
@@ -403,9 +502,16 @@ impl CostFile {
 /// Run `simrod-cost` (at [`COST_SHIFT`]) in `cwd`, parse its file, and check the
 /// calibration and that every run computed the host's bits.
 pub fn run_cost(elf: &Path, cwd: &Path) -> Result<CostFile, String> {
+    run_cost_on(&M4F, elf, cwd)
+}
+
+/// [`run_cost`] on the board of `mcu`, against the host run of its twin.
+pub fn run_cost_on(mcu: &Mcu, elf: &Path, cwd: &Path) -> Result<CostFile, String> {
     let shift = format!("shift={COST_SHIFT},sleep=off");
     let arg = format!("shift={COST_SHIFT}");
-    run_qemu(elf, cwd, &["-icount", &shift], &[&arg], Duration::from_secs(600))?;
+    // The M3's soft-float build runs several times the M4F's instructions.
+    let timeout = Duration::from_secs(if *mcu == M4F { 600 } else { 1800 });
+    run_qemu_on(mcu, elf, cwd, &["-icount", &shift], &[&arg], timeout)?;
     let path = cwd.join(protocol::COST_FILE);
     let bytes = fs::read(&path).map_err(|e| format!("{}: {e}", path.display()))?;
     let cost = parse_cost(&bytes)?;
@@ -415,7 +521,7 @@ pub fn run_cost(elf: &Path, cwd: &Path) -> Result<CostFile, String> {
         return Err(format!("cost runs {got:?}, expected {COST_PROFILES:?}"));
     }
     for r in &cost.runs {
-        let want = host_hash(r.profile);
+        let want = host_hash_on(mcu, r.profile);
         if !r.identified || r.hash != want {
             return Err(format!(
                 "{} (identified: {}): the firmware's outputs hash to {:#018x}, the host's to {want:#018x}",
@@ -496,10 +602,22 @@ impl std::fmt::Display for LoopStats {
 /// Run the bench loop (`firmware` ELF) on `profile` with a tick of `tick_us` under
 /// `-icount shift=LOOP_SHIFT` in `cwd`; its statistics frame.
 pub fn run_loop(elf: &Path, cwd: &Path, profile: Builtin, tick_us: u32) -> Result<LoopStats, String> {
+    run_loop_on(&M4F, elf, cwd, profile, tick_us)
+}
+
+/// [`run_loop`] on the board of `mcu`.
+pub fn run_loop_on(
+    mcu: &Mcu,
+    elf: &Path,
+    cwd: &Path,
+    profile: Builtin,
+    tick_us: u32,
+) -> Result<LoopStats, String> {
     let shift = format!("shift={LOOP_SHIFT},sleep=off");
     let args = [format!("profile={}", profile.name()), format!("tick_us={tick_us}")];
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    run_qemu(elf, cwd, &["-icount", &shift, "-serial", "file:uart.bin"], &args, Duration::from_secs(600))?;
+    let extra = ["-icount", &shift, "-serial", "file:uart.bin"];
+    run_qemu_on(mcu, elf, cwd, &extra, &args, Duration::from_secs(600))?;
     let bytes = fs::read(cwd.join("uart.bin")).map_err(|e| format!("UART capture: {e}"))?;
     let stats = protocol::frames(&bytes)
         .filter(|(k, _)| *k == protocol::KIND_STATS)

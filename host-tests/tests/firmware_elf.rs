@@ -284,7 +284,18 @@ const ROOTS: [&str; 3] = ["simrod_step", "simrod_profile_at", "simrod_xil_step"]
 
 #[test]
 fn step_links_no_panic_path_and_no_allocator() {
-    let dir = fw::build_firmware("plain", None);
+    check_elfs(&fw::M4F, "plain");
+}
+
+/// The same check on the Cortex-M3's fixed-point build (its step: the fixed-point twin,
+/// `fixed`'s operations and the 64-bit helpers of compiler-builtins).
+#[test]
+fn m3_fixed_point_step_links_no_panic_path_and_no_allocator() {
+    check_elfs(&fw::M3_FIXED, "m3-fixed");
+}
+
+fn check_elfs(mcu: &fw::Mcu, variant: &str) {
+    let dir = fw::build_firmware_on(mcu, variant, None);
     // Positive control: the check must see the canary's bounds check.
     let elf = load(&dir.join("simrod-trace"));
     let r = reach(&elf, "simrod_canary_index");
@@ -294,7 +305,7 @@ fn step_links_no_panic_path_and_no_allocator() {
     );
     assert!(chain.last().is_some_and(|n| n.contains("panic_bounds_check")), "{chain:?}");
     eprintln!("canary found: {}", chain.join(" -> "));
-    for bin in fw::BINARIES {
+    for bin in mcu.binaries() {
         let elf = load(&dir.join(bin));
         let alloc: Vec<&String> = elf
             .names
@@ -309,7 +320,7 @@ fn step_links_no_panic_path_and_no_allocator() {
             .collect();
         assert!(alloc.is_empty(), "{bin}: allocator symbols {alloc:?}");
         assert!(
-            bin != "simrod-xil" || elf.names.iter().any(|n| n == "simrod_xil_step"),
+            *bin != "simrod-xil" || elf.names.iter().any(|n| n == "simrod_xil_step"),
             "simrod-xil has no simrod_xil_step to check"
         );
         for root in

@@ -12,13 +12,18 @@
 //!
 //! The reference itself is checked by halving its step (`reference_converges`): its own
 //! error must be far below the twin's, or the comparison would measure the reference.
+//!
+//! Both instances of the twin are measured: the f32 twin and the fixed-point twin
+//! (`model_core::Fx`, the Cortex-M3 build), against the same reference runs and the same
+//! bound; the fixed-point runs must not saturate a single operation.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::thread;
 
 use host_tests::reference::{Case, Reference, Sample, CHANNELS};
 use model_core::{
-    Builtin, Channel, Config, CouplingStiffness, Outputs, Params, Profile, RateSet, Simulation,
+    Builtin, Channel, Config, CouplingStiffness, Outputs, Params, Profile, RateSet, Real, Simulation,
+    N_CHANNELS,
 };
 
 /// Reference step [ns]: `ω h ≈ 0.12` on the 2 kHz flange mode.
@@ -81,11 +86,29 @@ fn cases() -> Vec<Named> {
     ]
 }
 
-fn twin(c: &Case, dt_us: u32) -> Vec<Outputs> {
+/// One step's outputs in f64: the time [µs] and every channel's value, exact for both
+/// instances (an f32, and an I32F32's bits over 2^32, convert to f64 exactly).
+type Step = (u64, [f64; N_CHANNELS]);
+
+fn f64_of<R: Real>(o: &Outputs<R>, exact: impl Fn(R) -> f64) -> Step {
+    (o.t_us, o.values.map(exact))
+}
+
+fn setup(c: &Case, dt_us: u32) -> (Config, Profile) {
     let cfg =
         Config { dt_us, params: Params::thesis(c.rates, CouplingStiffness::Identified), ..Config::default() };
-    let profile = Profile::builtin(c.profile, c.throttle_scale, c.load_scale).unwrap();
-    Simulation::new(&cfg, profile, SUPPLY_V).unwrap().collect()
+    (cfg, Profile::builtin(c.profile, c.throttle_scale, c.load_scale).unwrap())
+}
+
+/// The twin: the f32 instance, or the fixed-point one (`fixed`).
+fn twin(c: &Case, dt_us: u32, fixed: bool) -> Vec<Step> {
+    let (cfg, profile) = setup(c, dt_us);
+    if fixed {
+        let sim = Simulation::new_fx(&cfg, profile, SUPPLY_V).unwrap();
+        sim.map(|o| f64_of(&o, |v| v.to_bits() as f64 / 4_294_967_296.0)).collect()
+    } else {
+        Simulation::new(&cfg, profile, SUPPLY_V).unwrap().map(|o| f64_of(&o, f64::from)).collect()
+    }
 }
 
 /// `v <= bound`, false for NaN (an undefined error never passes).
@@ -109,37 +132,41 @@ fn nrmse<'a>(pairs: impl Iterator<Item = (f64, &'a Sample)>, ch: Channel) -> (f6
 
 /// The reference sample at each twin output's time (reference sampled every 100 µs).
 fn at_twin_times<'a>(
-    twin: &'a [Outputs],
+    twin: &'a [Step],
     reference: &'a [Sample],
     ch: Channel,
 ) -> impl Iterator<Item = (f64, &'a Sample)> {
-    twin.iter().map(move |o| {
-        let r = &reference[(o.t_us / 100 - 1) as usize];
-        assert_eq!(r.t_us, o.t_us, "sample instants differ");
-        (f64::from(o.get(ch)), r)
+    twin.iter().map(move |(t_us, v)| {
+        let r = &reference[(t_us / 100 - 1) as usize];
+        assert_eq!(r.t_us, *t_us, "sample instants differ");
+        (v[ch as usize], r)
     })
 }
 
-/// NRMSE of one channel at both twin steps, and the reference's span.
+/// NRMSE of one channel at both twin steps, f32 and fixed-point, and the reference's span.
 struct Row {
     channel: Channel,
     span: f64,
     ms1: f64,
     us100: f64,
+    fx_ms1: f64,
+    fx_us100: f64,
 }
 
 fn compare(c: &Case) -> Vec<Row> {
     let reference = Reference::new(c, REF_STEP_NS).run(100);
-    let coarse = twin(c, 1000);
-    let fine = twin(c, 100);
+    let [coarse, fine, fx_coarse, fx_fine] =
+        [(1000, false), (100, false), (1000, true), (100, true)].map(|(dt, fx)| twin(c, dt, fx));
     assert_eq!(coarse.len() * 10, reference.len());
     assert_eq!(fine.len(), reference.len());
+    assert_eq!(fx_coarse.len(), coarse.len());
+    assert_eq!(fx_fine.len(), fine.len());
     CHANNELS
         .into_iter()
         .map(|channel| {
-            let (span, ms1) = nrmse(at_twin_times(&coarse, &reference, channel), channel);
-            let (_, us100) = nrmse(at_twin_times(&fine, &reference, channel), channel);
-            Row { channel, span, ms1, us100 }
+            let e = |run: &[Step]| nrmse(at_twin_times(run, &reference, channel), channel);
+            let (span, ms1) = e(&coarse);
+            Row { channel, span, ms1, us100: e(&fine).1, fx_ms1: e(&fx_coarse).1, fx_us100: e(&fx_fine).1 }
         })
         .collect()
 }
@@ -172,19 +199,25 @@ fn twin_matches_reference() {
     for (n, rows) in cases.iter().zip(compare_all(&cases)) {
         println!("\n{}", n.name);
         println!(
-            "{:<13} {:>5} {:>10} {:>11} {:>12}",
-            "channel", "unit", "span", "NRMSE 1 ms", "NRMSE 100 µs"
+            "{:<13} {:>5} {:>10} {:>11} {:>12} {:>14} {:>15}",
+            "channel", "unit", "span", "NRMSE 1 ms", "NRMSE 100 µs", "fixed: 1 ms", "fixed: 100 µs"
         );
-        for Row { channel: ch, span, ms1, us100 } in rows {
+        for Row { channel: ch, span, ms1, us100, fx_ms1, fx_us100 } in rows {
             let asserted = ASSERTED.contains(&ch);
             let info = if asserted { "" } else { "   (info)" };
-            println!("{:<13} {:>5} {span:>10.4} {ms1:>11.3e} {us100:>12.3e}{info}", ch.name(), ch.unit());
-            if asserted && !(within(ms1, BOUND) && within(us100, BOUND)) {
-                failures.push(format!(
-                    "{}: {} NRMSE {ms1:.3e} (1 ms) / {us100:.3e} (100 µs) above 1 %",
-                    n.name,
-                    ch.name()
-                ));
+            println!(
+                "{:<13} {:>5} {span:>10.4} {ms1:>11.3e} {us100:>12.3e} {fx_ms1:>14.3e} {fx_us100:>15.3e}{info}",
+                ch.name(),
+                ch.unit()
+            );
+            for (what, a, b) in [("f32", ms1, us100), ("fixed-point", fx_ms1, fx_us100)] {
+                if asserted && !(within(a, BOUND) && within(b, BOUND)) {
+                    failures.push(format!(
+                        "{}: {what} {} NRMSE {a:.3e} (1 ms) / {b:.3e} (100 µs) above 1 %",
+                        n.name,
+                        ch.name()
+                    ));
+                }
             }
             if SPEEDS.contains(&ch) && !within(us100, ms1) {
                 failures.push(format!(
@@ -196,6 +229,8 @@ fn twin_matches_reference() {
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");
+    // Every fixed-point operation of these runs stayed in range (nothing clipped).
+    assert_eq!(model_core::saturations(), 0, "fixed-point operations saturated");
 }
 
 #[test]

@@ -10,6 +10,7 @@
 //! torque dip at every torque reversal.
 
 use crate::drivetrain::{NS, W_A};
+use crate::num::Real;
 
 /// Torque [N m, axle frame] by which the mesh torque must reverse before the gears part;
 /// avoids chattering around zero load.
@@ -17,10 +18,10 @@ const SEPARATION_NM: f32 = 0.05;
 
 /// Backlash constants, fixed at construction.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Backlash {
-    half_gap: f32,
-    j_m: f32,
-    j_side_free: f32,
+pub struct Backlash<R = f32> {
+    half_gap: R,
+    j_m: R,
+    j_side_free: R,
     /// Any gap at all (the gears then start apart).
     starts_free: bool,
 }
@@ -28,30 +29,30 @@ pub struct Backlash {
 /// Backlash state: the gears in contact or apart, the gap, the flank last engaged and
 /// the free motor's speed.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BacklashState {
+pub struct BacklashState<R = f32> {
     free: bool,
-    gap: f32,
-    side: f32,
-    w_m: f32,
+    gap: R,
+    side: R,
+    w_m: R,
 }
 
-impl Backlash {
+impl<R: Real> Backlash<R> {
     /// `gap_rad`: total free play [rad, axle frame]; `j_m`: motor-side inertia [kg m²,
     /// axle frame]; `j_side_free`: each side's SuT inertia without the motor share.
-    pub fn new(gap_rad: f32, j_m: f32, j_side_free: f32) -> Self {
-        Self { half_gap: 0.5 * gap_rad, j_m, j_side_free, starts_free: gap_rad > 0.0 }
+    pub fn new(gap_rad: R, j_m: R, j_side_free: R) -> Self {
+        Self { half_gap: R::lit(0.5) * gap_rad, j_m, j_side_free, starts_free: gap_rad > R::ZERO }
     }
 
     /// The state at rest: the gears start in the middle of the gap (nothing engaged
     /// yet), apart if there is a gap at all.
-    pub fn initial(&self) -> BacklashState {
-        BacklashState { free: self.starts_free, gap: 0.0, side: 1.0, w_m: 0.0 }
+    pub fn initial(&self) -> BacklashState<R> {
+        BacklashState { free: self.starts_free, gap: R::ZERO, side: R::ONE, w_m: R::ZERO }
     }
 
     /// Whether backlash is modelled at all.
     #[inline]
     pub fn enabled(&self) -> bool {
-        self.half_gap > 0.0
+        self.half_gap > R::ZERO
     }
 
     /// After the shafts stepped: move the free motor and the gap, re-engage on closing
@@ -59,13 +60,14 @@ impl Backlash {
     /// part when the mesh torque reverses.
     pub fn after_step(
         &self,
-        s: &mut BacklashState,
-        motor_torque_axle: f32,
-        w_case_before: f32,
-        x: &mut [[f32; NS]; 2],
-        dt: f32,
+        s: &mut BacklashState<R>,
+        motor_torque_axle: R,
+        w_case_before: R,
+        x: &mut [[R; NS]; 2],
+        dt: R,
     ) {
-        let w_case = 0.5 * (x[0][W_A] + x[1][W_A]);
+        let (half, one, two) = (R::lit(0.5), R::ONE, R::lit(2.0));
+        let w_case = half * (x[0][W_A] + x[1][W_A]);
         if s.free {
             let w_m0 = s.w_m;
             let w_m1 = w_m0 + motor_torque_axle / self.j_m * dt;
@@ -75,16 +77,20 @@ impl Backlash {
                 // flew freely until then, the impact is inelastic, and the motor torque of
                 // the rest of the step drives the engaged train. Locating the impact inside
                 // the step keeps the response continuous in the backlash (identifiable).
-                s.side = if gap1 > 0.0 { 1.0 } else { -1.0 };
+                s.side = if gap1 > R::ZERO { one } else { -one };
                 let target = s.side * self.half_gap;
                 let span = gap1 - s.gap;
-                let f = if span != 0.0 { crate::num::clamp((target - s.gap) / span, 0.0, 1.0) } else { 1.0 };
+                let f = if span != R::ZERO {
+                    crate::num::clamp((target - s.gap) / span, R::ZERO, one)
+                } else {
+                    one
+                };
                 s.gap = target;
                 let w_m_hit = w_m0 + motor_torque_axle / self.j_m * (f * dt);
-                let impulse = (w_m_hit - w_case) / (1.0 / self.j_m + 1.0 / (2.0 * self.j_side_free));
-                let rest = motor_torque_axle * ((1.0 - f) * dt) / (self.j_m + 2.0 * self.j_side_free);
+                let impulse = (w_m_hit - w_case) / (one / self.j_m + one / (two * self.j_side_free));
+                let rest = motor_torque_axle * ((one - f) * dt) / (self.j_m + two * self.j_side_free);
                 for side in x.iter_mut() {
-                    side[W_A] += impulse / (2.0 * self.j_side_free) + rest;
+                    side[W_A] += impulse / (two * self.j_side_free) + rest;
                 }
                 s.free = false;
             } else {
@@ -96,7 +102,7 @@ impl Backlash {
             // inertia takes. Parting when it pulls against the engaged flank.
             let accel = (w_case - w_case_before) / dt;
             let mesh = motor_torque_axle - self.j_m * accel;
-            if s.side * mesh < -SEPARATION_NM {
+            if s.side * mesh < -R::lit(SEPARATION_NM) {
                 s.free = true;
                 s.w_m = w_case;
             }
@@ -104,7 +110,7 @@ impl Backlash {
     }
 }
 
-impl BacklashState {
+impl<R: Real> BacklashState<R> {
     /// Whether the gears are apart this step.
     #[inline]
     pub fn is_free(&self) -> bool {
@@ -113,7 +119,7 @@ impl BacklashState {
 
     /// Motor speed [rad/s, axle frame] given the differential case speed.
     #[inline]
-    pub fn motor_speed(&self, w_case: f32) -> f32 {
+    pub fn motor_speed(&self, w_case: R) -> R {
         if self.free {
             self.w_m
         } else {
@@ -123,9 +129,9 @@ impl BacklashState {
 
     /// Motor torque reaching the differential case [N m, axle frame].
     #[inline]
-    pub fn case_torque(&self, motor_torque_axle: f32) -> f32 {
+    pub fn case_torque(&self, motor_torque_axle: R) -> R {
         if self.free {
-            0.0
+            R::ZERO
         } else {
             motor_torque_axle
         }

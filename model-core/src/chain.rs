@@ -16,6 +16,7 @@
 //! only (the exponential through [`crate::expm`]), so host and target agree bit for bit.
 
 use crate::expm::expm;
+use crate::num::Real;
 use crate::outputs::MEASURED;
 
 /// Number of measured channels: one chain each.
@@ -28,14 +29,14 @@ pub const SENSOR_DELAY_CAPACITY: usize = 128;
 
 /// First-order lag `tau dy/dt = x - y`, exact for an input linear between samples
 /// (first-order hold): `y1 = a y0 + b x1 - c (x1 - x0)`.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-struct Lag {
-    a: f32,
-    b: f32,
-    c: f32,
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Lag<R = f32> {
+    a: R,
+    b: R,
+    c: R,
 }
 
-impl Lag {
+impl<R: Real> Lag<R> {
     /// The coefficients for time constant `tau` [s] at step `dt` [s]; `None` for 0 (off).
     /// Not inlined: one copy of the exponential for all channels (flash).
     #[inline(never)]
@@ -48,7 +49,7 @@ impl Lag {
         let b = 1.0 - a;
         // (1 - e^-r) / r - e^-r, by its series where the difference cancels.
         let c = if r < 1e-3 { r * (0.5 - r * (1.0 / 3.0 - r / 8.0)) } else { b / r - a };
-        Some(Self { a: a as f32, b: b as f32, c: c as f32 })
+        Some(Self { a: R::from_f64(a), b: R::from_f64(b), c: R::from_f64(c) })
     }
 }
 
@@ -61,40 +62,43 @@ struct Slots {
 
 /// The chain's coefficients, fixed at construction.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Chain {
-    gain: [f32; N_MEASURED],
-    offset: [f32; N_MEASURED],
-    lag: [Option<Lag>; N_MEASURED],
+pub struct Chain<R = f32> {
+    gain: [R; N_MEASURED],
+    offset: [R; N_MEASURED],
+    lag: [Option<Lag<R>>; N_MEASURED],
     delay: [Slots; N_MEASURED],
     /// Some channel has a lag or a delay (else the step is a calibration only).
     dynamic: bool,
+    /// Every gain 1 and every offset 0: with exact sums (`Real::EXACT_SUM`, fixed point)
+    /// `v 1 + 0` is `v`, and the calibration is skipped.
+    unity: bool,
 }
 
 /// What the chain remembers between steps.
 #[derive(Debug, Clone)]
-pub struct ChainState {
+pub struct ChainState<R = f32> {
     started: bool,
     /// Lag outputs and inputs of the last step.
-    y: [f32; N_MEASURED],
-    x: [f32; N_MEASURED],
+    y: [R; N_MEASURED],
+    x: [R; N_MEASURED],
     /// Write positions, relative to each channel's first slot.
     pos: [u8; N_MEASURED],
-    line: [f32; SENSOR_DELAY_CAPACITY],
+    line: [R; SENSOR_DELAY_CAPACITY],
 }
 
-impl Default for ChainState {
+impl<R: Real> Default for ChainState<R> {
     fn default() -> Self {
         Self {
             started: false,
-            y: [0.0; N_MEASURED],
-            x: [0.0; N_MEASURED],
+            y: [R::ZERO; N_MEASURED],
+            x: [R::ZERO; N_MEASURED],
             pos: [0; N_MEASURED],
-            line: [0.0; SENSOR_DELAY_CAPACITY],
+            line: [R::ZERO; SENSOR_DELAY_CAPACITY],
         }
     }
 }
 
-impl Chain {
+impl<R: Real> Chain<R> {
     /// From the effects' per-channel values (validated) at step `dt` [s].
     pub fn new(
         gain: [f32; N_MEASURED],
@@ -113,7 +117,8 @@ impl Chain {
         }
         let lag = lag_s.map(|t| Lag::new(t, dt));
         let dynamic = lag.iter().any(Option::is_some) || delay.iter().any(|s| s.len > 0);
-        Self { gain, offset, lag, delay, dynamic }
+        let unity = gain.iter().all(|g| *g == 1.0) && offset.iter().all(|k| *k == 0.0);
+        Self { gain: gain.map(R::lit), offset: offset.map(R::lit), lag, delay, dynamic, unity }
     }
 
     /// Each channel's delay in whole steps, as realised.
@@ -123,10 +128,12 @@ impl Chain {
 
     /// The recorded values of one step from the physical ones, in [`MEASURED`] order.
     #[inline]
-    pub fn apply(&self, s: &mut ChainState, raw: &[f32; N_MEASURED]) -> [f32; N_MEASURED] {
-        let mut out = [0.0; N_MEASURED];
-        for ((o, v), (g, k)) in out.iter_mut().zip(raw).zip(self.gain.iter().zip(&self.offset)) {
-            *o = v * g + k;
+    pub fn apply(&self, s: &mut ChainState<R>, raw: &[R; N_MEASURED]) -> [R; N_MEASURED] {
+        let mut out = *raw;
+        if !(R::EXACT_SUM && self.unity) {
+            for ((o, v), (g, k)) in out.iter_mut().zip(raw).zip(self.gain.iter().zip(&self.offset)) {
+                *o = *v * *g + *k;
+            }
         }
         if self.dynamic {
             self.lag_and_delay(s, &mut out);
@@ -135,7 +142,7 @@ impl Chain {
     }
 
     /// The amplifiers' lags, then the acquisition's delays, in place.
-    fn lag_and_delay(&self, s: &mut ChainState, out: &mut [f32; N_MEASURED]) {
+    fn lag_and_delay(&self, s: &mut ChainState<R>, out: &mut [R; N_MEASURED]) {
         let first = !s.started;
         s.started = true;
         let lags = self.lag.iter().zip(s.y.iter_mut().zip(s.x.iter_mut()));
@@ -158,7 +165,13 @@ impl Chain {
 /// Push `v` into the channel's slots, return the value `len` steps old; on the first
 /// step the slots are filled with `v` (the run starts at rest).
 #[inline]
-fn delayed(line: &mut [f32; SENSOR_DELAY_CAPACITY], slots: Slots, pos: &mut u8, v: f32, first: bool) -> f32 {
+fn delayed<R: Real>(
+    line: &mut [R; SENSOR_DELAY_CAPACITY],
+    slots: Slots,
+    pos: &mut u8,
+    v: R,
+    first: bool,
+) -> R {
     if slots.len == 0 {
         return v;
     }
@@ -181,7 +194,7 @@ mod tests {
 
     const N: usize = N_MEASURED;
 
-    fn chain(lag: f32, delay: f32, ch: usize) -> Chain {
+    fn chain(lag: f32, delay: f32, ch: usize) -> Chain<f32> {
         let mut lags = [0.0; N];
         let mut delays = [0.0; N];
         lags[ch] = lag;
@@ -189,7 +202,7 @@ mod tests {
         Chain::new([1.0; N], [0.0; N], lags, delays, 1e-3)
     }
 
-    fn run(c: &Chain, ch: usize, xs: &[f32]) -> std::vec::Vec<f32> {
+    fn run(c: &Chain<f32>, ch: usize, xs: &[f32]) -> std::vec::Vec<f32> {
         let mut s = ChainState::default();
         xs.iter()
             .map(|&x| {
@@ -202,7 +215,7 @@ mod tests {
 
     #[test]
     fn neutral_chain_passes_every_value_through() {
-        let c = Chain::new([1.0; N], [0.0; N], [0.0; N], [0.0; N], 1e-3);
+        let c = Chain::<f32>::new([1.0; N], [0.0; N], [0.0; N], [0.0; N], 1e-3);
         let mut s = ChainState::default();
         let raw: [f32; N] = core::array::from_fn(|i| i as f32 * 1.5 - 3.0);
         assert_eq!(c.apply(&mut s, &raw), raw);
@@ -213,7 +226,7 @@ mod tests {
         let mut g = [1.0; N];
         let mut k = [0.0; N];
         (g[2], k[2]) = (1.05, 1.5);
-        let c = Chain::new(g, k, [0.0; N], [0.0; N], 1e-3);
+        let c = Chain::<f32>::new(g, k, [0.0; N], [0.0; N], 1e-3);
         let out = c.apply(&mut ChainState::default(), &[10.0; N]);
         assert_eq!(out[2], 10.0 * 1.05 + 1.5);
         assert_eq!(out[3], 10.0);
@@ -229,7 +242,7 @@ mod tests {
     fn delays_share_the_line_and_are_cut_beyond_it() {
         let mut d = [0.0; N];
         (d[0], d[1], d[2]) = (0.1, 0.02, 0.1);
-        let c = Chain::new([1.0; N], [0.0; N], [0.0; N], d, 1e-3);
+        let c = Chain::<f32>::new([1.0; N], [0.0; N], [0.0; N], d, 1e-3);
         assert_eq!(c.delay_steps()[..3], [100, 20, SENSOR_DELAY_CAPACITY - 120]);
     }
 

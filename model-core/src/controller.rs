@@ -6,27 +6,28 @@
 //! limits and the derivative filter's factor, computed once at construction;
 //! [`PidState`] is what the step changes.
 
+use crate::num::{clamp, Real};
 use crate::params::Params;
 
 /// Controller coefficients, fixed at construction.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct PidConfig {
-    kp: f32,
-    ki: f32,
-    kd: f32,
+pub struct PidConfig<R = f32> {
+    kp: R,
+    ki: R,
+    kd: R,
     /// Weight of the derivative's first-order filter, `dt / (tau + dt)`.
-    d_weight: f32,
+    d_weight: R,
     /// [s] step.
-    dt: f32,
-    torque_max_nm: f32,
-    power_max_w: f32,
+    dt: R,
+    torque_max_nm: R,
+    power_max_w: R,
 }
 
-impl PidConfig {
+impl<R: Real> PidConfig<R> {
     /// Coefficients for parameters `p` at step `dt` [s]. The filter weight is computed
     /// here once, with the operations the step used to repeat, so the bits are the same.
-    pub fn new(p: &Params, dt: f32) -> Self {
+    pub fn new(p: &Params<R>, dt: R) -> Self {
         Self {
             kp: p.pid_kp,
             ki: p.pid_ki,
@@ -40,23 +41,29 @@ impl PidConfig {
 
     /// Torque limit at a motor speed [rad/s] (see [`torque_limit`]).
     #[inline]
-    fn limit(&self, speed: f32) -> f32 {
+    fn limit(&self, speed: R) -> R {
         limit(self.torque_max_nm, self.power_max_w, speed)
     }
 }
 
 /// Controller state.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct PidState {
-    integ: f32,
-    d_filt: f32,
-    prev_meas: f32,
+pub struct PidState<R = f32> {
+    integ: R,
+    d_filt: R,
+    prev_meas: R,
 }
 
-impl PidState {
+impl<R: Real> Default for PidState<R> {
+    fn default() -> Self {
+        Self { integ: R::ZERO, d_filt: R::ZERO, prev_meas: R::ZERO }
+    }
+}
+
+impl<R: Real> PidState<R> {
     /// Motor torque [N m] for a command and a measured speed [rad/s], motor frame.
-    pub fn update(&mut self, c: &PidConfig, cmd: f32, meas: f32) -> f32 {
+    pub fn update(&mut self, c: &PidConfig<R>, cmd: R, meas: R) -> R {
         let e = cmd - meas;
         // Derivative on measurement through a first-order filter (no kick on steps).
         let raw_d = (meas - self.prev_meas) / c.dt;
@@ -64,25 +71,28 @@ impl PidState {
         self.d_filt += c.d_weight * (raw_d - self.d_filt);
         let lim = c.limit(meas);
         let unsat = c.kp * e + self.integ - c.kd * self.d_filt;
-        let pushing_out = (unsat > lim && e > 0.0) || (unsat < -lim && e < 0.0);
+        let pushing_out = (unsat > lim && e > R::ZERO) || (unsat < -lim && e < R::ZERO);
         if !pushing_out {
-            self.integ = crate::num::clamp(self.integ + c.ki * e * c.dt, -lim, lim);
+            self.integ = clamp(self.integ + c.ki * e * c.dt, -lim, lim);
         }
-        crate::num::clamp(unsat, -lim, lim)
+        clamp(unsat, -lim, lim)
     }
 }
 
 /// Torque limit at a motor speed [rad/s]: the torque limit, and the power limit above
 /// base speed.
 #[inline]
-pub fn torque_limit(p: &Params, speed: f32) -> f32 {
+pub fn torque_limit<R: Real>(p: &Params<R>, speed: R) -> R {
     limit(p.motor_torque_max_nm, p.motor_power_max_w, speed)
 }
 
 #[inline]
-fn limit(torque_max: f32, power_max: f32, speed: f32) -> f32 {
-    let w = if speed < 0.0 { -speed } else { speed };
-    let by_power = if w > 0.0 { power_max / w } else { torque_max };
+fn limit<R: Real>(torque_max: R, power_max: R, speed: R) -> R {
+    let w = if speed < R::ZERO { -speed } else { speed };
+    // Below 1e-6 of the power limit in rad/s (w 1e6 <= P) the power limit is beyond a
+    // million N m, above any torque limit, so the torque limit holds there: the same
+    // result as dividing, without a quotient beyond the fixed-point range.
+    let by_power = if w > R::ZERO && w * R::lit(1e6) > power_max { power_max / w } else { torque_max };
     if by_power < torque_max {
         by_power
     } else {

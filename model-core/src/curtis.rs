@@ -7,6 +7,7 @@
 //! blend linearly; partial acceleration blends linearly (in rpm/s) between the Low
 //! Accel Rate at the low-throttle threshold and the Accel Rate at full throttle.
 
+use crate::num::{clamp, Real};
 use crate::params::{DirectionRates, Params};
 use crate::throttle::dir_index;
 
@@ -27,51 +28,52 @@ pub enum RateCase {
 
 /// Multipliers on the ramp rates, `[accel, decel]` per direction `[fwd, rev]`
 /// (the `inverter_rate_scale` effect; 1 = as parameterised).
-pub type RateScale = [[f32; 2]; 2];
+pub type RateScale<R = f32> = [[R; 2]; 2];
 
 #[inline]
-fn rpm_per_s(p: &Params, seconds: f32) -> f32 {
-    if seconds > 0.0 {
+fn rpm_per_s<R: Real>(p: &Params<R>, seconds: R) -> R {
+    if seconds > R::ZERO {
         p.typical_max_speed_rpm / seconds
     } else {
-        0.0
+        R::ZERO
     }
 }
 
 #[inline]
-fn hs_ls_blend(p: &Params, r: &DirectionRates, speed_rpm: f32, hs_s: f32, ls_s: f32) -> f32 {
-    let s = if speed_rpm < 0.0 { -speed_rpm } else { speed_rpm } / p.typical_max_speed_rpm * 100.0;
+fn hs_ls_blend<R: Real>(p: &Params<R>, r: &DirectionRates<R>, speed_rpm: R, hs_s: R, ls_s: R) -> R {
+    let s =
+        if speed_rpm < R::ZERO { -speed_rpm } else { speed_rpm } / p.typical_max_speed_rpm * R::lit(100.0);
     let w = if r.hs_pct > r.ls_pct {
-        ((s - r.ls_pct) / (r.hs_pct - r.ls_pct)).clamp(0.0, 1.0)
+        clamp((s - r.ls_pct) / (r.hs_pct - r.ls_pct), R::ZERO, R::ONE)
     } else if s >= r.ls_pct {
-        1.0
+        R::ONE
     } else {
-        0.0
+        R::ZERO
     };
     let lo = rpm_per_s(p, ls_s);
     lo + w * (rpm_per_s(p, hs_s) - lo)
 }
 
 /// Ramp rate [rpm/s] and case for the current throttle, target, command and speed.
-pub fn ramp_rate(
-    p: &Params,
-    scale: &RateScale,
-    mapped_pct: f32,
-    target_rpm: f32,
-    cmd_rpm: f32,
-    speed_rpm: f32,
-) -> (f32, RateCase) {
+pub fn ramp_rate<R: Real>(
+    p: &Params<R>,
+    scale: &RateScale<R>,
+    mapped_pct: R,
+    target_rpm: R,
+    cmd_rpm: R,
+    speed_rpm: R,
+) -> (R, RateCase) {
     if target_rpm == cmd_rpm {
-        return (0.0, RateCase::Hold);
+        return (R::ZERO, RateCase::Hold);
     }
-    let moving = if cmd_rpm != 0.0 { cmd_rpm } else { target_rpm };
+    let moving = if cmd_rpm != R::ZERO { cmd_rpm } else { target_rpm };
     let d = dir_index(moving);
     let Some(r) = p.rates.dir.get(d) else {
-        return (0.0, RateCase::Hold);
+        return (R::ZERO, RateCase::Hold);
     };
-    let sc = scale.get(d).copied().unwrap_or([1.0, 1.0]);
-    let same_side = (target_rpm >= 0.0) == (cmd_rpm >= 0.0) || cmd_rpm == 0.0;
-    let mag = |v: f32| if v < 0.0 { -v } else { v };
+    let sc = scale.get(d).copied().unwrap_or([R::ONE, R::ONE]);
+    let same_side = (target_rpm >= R::ZERO) == (cmd_rpm >= R::ZERO) || cmd_rpm == R::ZERO;
+    let mag = |v: R| if v < R::ZERO { -v } else { v };
     let accelerating = same_side && mag(target_rpm) > mag(cmd_rpm);
     if accelerating {
         let acc = hs_ls_blend(p, r, speed_rpm, r.accel_hs_s, r.accel_ls_s);
@@ -85,7 +87,7 @@ pub fn ramp_rate(
             (low + f * (acc - low), RateCase::PartialAccel)
         };
         (rate * sc[0], case)
-    } else if mapped_pct <= 0.0 {
+    } else if mapped_pct <= R::ZERO {
         let rate = hs_ls_blend(p, r, speed_rpm, r.neutral_decel_hs_s, r.neutral_decel_ls_s);
         (rate * sc[1], RateCase::NeutralDecel)
     } else {
@@ -95,23 +97,23 @@ pub fn ramp_rate(
 
 /// Move `cmd` towards `target` by at most `rate * dt`.
 #[inline]
-pub fn advance(cmd_rpm: f32, target_rpm: f32, rate_rpm_s: f32, dt_s: f32) -> f32 {
+pub fn advance<R: Real>(cmd_rpm: R, target_rpm: R, rate_rpm_s: R, dt_s: R) -> R {
     let max = rate_rpm_s * dt_s;
-    cmd_rpm + crate::num::clamp(target_rpm - cmd_rpm, -max, max)
+    cmd_rpm + clamp(target_rpm - cmd_rpm, -max, max)
 }
 
 /// [`advance`] on a compensated command `hi + lo`: a ramp adds a small increment every
 /// step, whose low bits plain f32 would drop with a bias (a drift of ~1 rpm over a slow
 /// ramp at 100 µs). Reaching the target sets it exactly.
 #[inline]
-pub fn advance_compensated(hi: f32, lo: f32, target_rpm: f32, rate_rpm_s: f32, dt_s: f32) -> (f32, f32) {
+pub fn advance_compensated<R: Real>(hi: R, lo: R, target_rpm: R, rate_rpm_s: R, dt_s: R) -> (R, R) {
     let max = rate_rpm_s * dt_s;
     let gap = target_rpm - hi;
     if gap <= max && gap >= -max {
-        return (target_rpm, 0.0);
+        return (target_rpm, R::ZERO);
     }
-    let step = crate::num::clamp(gap, -max, max) + lo;
-    crate::drivetrain::two_sum(hi, step)
+    let step = clamp(gap, -max, max) + lo;
+    R::two_sum(hi, step)
 }
 
 #[cfg(test)]

@@ -2,6 +2,7 @@
 //! controller, as a fixed-capacity delay line (no heap; [`DELAY_CAPACITY`] steps).
 
 use crate::effects::DELAY_CAPACITY;
+use crate::num::Real;
 
 /// Delay length in steps, fixed at construction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -11,14 +12,14 @@ pub struct Delay {
 
 /// The delay line's samples and write position.
 #[derive(Debug, Clone)]
-pub struct DelayState {
-    buf: [f32; DELAY_CAPACITY],
+pub struct DelayState<R = f32> {
+    buf: [R; DELAY_CAPACITY],
     pos: usize,
 }
 
-impl Default for DelayState {
+impl<R: Real> Default for DelayState<R> {
     fn default() -> Self {
-        Self { buf: [0.0; DELAY_CAPACITY], pos: 0 }
+        Self { buf: [R::ZERO; DELAY_CAPACITY], pos: 0 }
     }
 }
 
@@ -37,7 +38,7 @@ impl Delay {
 
     /// Push `v`, return the value of `len` steps ago (0 before the line has filled).
     #[inline]
-    pub fn apply(&self, s: &mut DelayState, v: f32) -> f32 {
+    pub fn apply<R: Real>(&self, s: &mut DelayState<R>, v: R) -> R {
         if self.len == 0 {
             return v;
         }

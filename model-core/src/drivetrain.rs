@@ -31,6 +31,7 @@
 //! accurate, and is added to `hi` with an exact two-term sum. Basic operations only.
 
 use crate::expm::expm;
+use crate::num::Real;
 
 /// Number of states per side.
 pub const NS: usize = 5;
@@ -75,20 +76,17 @@ impl SideParams {
 /// Exact zero-order-hold discretization of one side.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct SideDisc {
-    pub phi: [[f32; NS]; NS],
+pub struct SideDisc<R = f32> {
+    pub phi: [[R; NS]; NS],
     /// `Φ − I`, rounded from f64 (the small increments keep their precision).
-    pub dphi: [[f32; NS]; NS],
-    pub gam: [[f32; 2]; NS],
+    pub dphi: [[R; NS]; NS],
+    pub gam: [[R; 2]; NS],
 }
 
 /// `a + b = s + e` exactly (Knuth's TwoSum; no FMA, so the same bits everywhere).
 #[inline]
-pub fn two_sum(a: f32, b: f32) -> (f32, f32) {
-    let s = a + b;
-    let bp = s - a;
-    let ap = s - bp;
-    (s, (a - ap) + (b - bp))
+pub fn two_sum<R: Real>(a: R, b: R) -> (R, R) {
+    R::two_sum(a, b)
 }
 
 fn min(a: f64, b: f64) -> f64 {
@@ -117,8 +115,9 @@ fn sqrt_f64(x: f64) -> f64 {
     r
 }
 
-impl SideDisc {
-    /// Discretize for step `dt` [s].
+impl<R: Real> SideDisc<R> {
+    /// Discretize for step `dt` [s]: the exponential in f64, each coefficient then
+    /// rounded once to `R` ([`Real::from_f64`]).
     pub fn new(sp: &SideParams, dt: f64) -> Self {
         let (a, b) = sp.continuous();
         // Balancing: twist states scaled by the stiffest natural frequency they feed.
@@ -136,17 +135,17 @@ impl SideDisc {
             }
         }
         let e = expm(&m);
-        let mut phi = [[0.0f32; NS]; NS];
-        let mut dphi = [[0.0f32; NS]; NS];
-        let mut gam = [[0.0f32; 2]; NS];
+        let mut phi = [[R::ZERO; NS]; NS];
+        let mut dphi = [[R::ZERO; NS]; NS];
+        let mut gam = [[R::ZERO; 2]; NS];
         for i in 0..NS {
             for j in 0..NS {
                 let v = e[i][j] * d[j] / d[i];
-                phi[i][j] = v as f32;
-                dphi[i][j] = (if i == j { v - 1.0 } else { v }) as f32;
+                phi[i][j] = R::from_f64(v);
+                dphi[i][j] = R::from_f64(if i == j { v - 1.0 } else { v });
             }
             for k in 0..2 {
-                gam[i][k] = (e[i][NS + k] / d[i]) as f32;
+                gam[i][k] = R::from_f64(e[i][NS + k] / d[i]);
             }
         }
         Self { phi, dphi, gam }
@@ -154,21 +153,24 @@ impl SideDisc {
 
     /// One compensated step: `hi + lo <- Φ (hi + lo) + Γ u`, summed in a fixed order.
     #[inline]
-    pub fn step_compensated(&self, hi: &mut [f32; NS], lo: &mut [f32; NS], u: [f32; 2]) {
+    pub fn step_compensated(&self, hi: &mut [R; NS], lo: &mut [R; NS], u: [R; 2]) {
         let (h0, l0) = (*hi, *lo);
         for (((h, l), (drow, prow)), grow) in
             hi.iter_mut().zip(lo.iter_mut()).zip(self.dphi.iter().zip(self.phi.iter())).zip(self.gam.iter())
         {
-            let mut inc = 0.0f32;
+            let mut inc = R::ZERO;
             for (dij, xj) in drow.iter().zip(h0.iter()) {
-                inc += dij * xj;
+                inc += *dij * *xj;
             }
-            for (pij, lj) in prow.iter().zip(l0.iter()) {
-                inc += pij * lj;
+            // With exact sums the low parts are 0 (`Real::EXACT_SUM`): Φ lo adds nothing.
+            if !R::EXACT_SUM {
+                for (pij, lj) in prow.iter().zip(l0.iter()) {
+                    inc += *pij * *lj;
+                }
             }
             inc += grow[0] * u[0];
             inc += grow[1] * u[1];
-            let (s, e) = two_sum(*h, inc);
+            let (s, e) = R::two_sum(*h, inc);
             *h = s;
             *l = e;
         }
@@ -176,12 +178,12 @@ impl SideDisc {
 
     /// One step: `x <- Φ x + Γ u`, summed in a fixed order.
     #[inline]
-    pub fn step(&self, x: &[f32; NS], u: [f32; 2]) -> [f32; NS] {
-        let mut out = [0.0f32; NS];
+    pub fn step(&self, x: &[R; NS], u: [R; 2]) -> [R; NS] {
+        let mut out = [R::ZERO; NS];
         for ((o, prow), grow) in out.iter_mut().zip(self.phi.iter()).zip(self.gam.iter()) {
-            let mut s = 0.0f32;
+            let mut s = R::ZERO;
             for (pij, xj) in prow.iter().zip(x.iter()) {
-                s += pij * xj;
+                s += *pij * *xj;
             }
             s += grow[0] * u[0];
             s += grow[1] * u[1];
@@ -217,7 +219,7 @@ mod tests {
         // Every state decays or stays bounded when unforced: |x| after 10 s is bounded
         // by its start (the rigid-body mode conserves, every other mode decays).
         for dt in [1e-3, 1e-4] {
-            let disc = SideDisc::new(&thesis_side(), dt);
+            let disc = SideDisc::<f32>::new(&thesis_side(), dt);
             let mut x = [0.0, 0.0, 0.0, 1e-4, 1e-3];
             let steps = (10.0 / dt) as usize;
             for _ in 0..steps {
@@ -233,7 +235,7 @@ mod tests {
         // Constant drive torque T in at the SuT side, T out at the load side: after the
         // transients decay the flange and coupling each carry T.
         let sp = thesis_side();
-        let disc = SideDisc::new(&sp, 1e-3);
+        let disc = SideDisc::<f32>::new(&sp, 1e-3);
         let mut x = [0.0; NS];
         for _ in 0..20_000 {
             x = disc.step(&x, [50.0, 50.0]);

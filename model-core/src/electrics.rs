@@ -2,17 +2,25 @@
 //! resistance -> SuT inverter; busbars -> each load motor. Powers come from the 2-D
 //! maps through rate limiters; currents from `I = P / V`; supply current is the sum.
 
+use crate::num::Real;
+
 /// First-order rate limiter on a power [W].
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct RateLimiter {
-    y: f32,
+pub struct RateLimiter<R = f32> {
+    y: R,
 }
 
-impl RateLimiter {
+impl<R: Real> Default for RateLimiter<R> {
+    fn default() -> Self {
+        Self { y: R::ZERO }
+    }
+}
+
+impl<R: Real> RateLimiter<R> {
     /// Move towards `target` by at most `max_step`.
     #[inline]
-    pub fn update(&mut self, target: f32, max_step: f32) -> f32 {
+    pub fn update(&mut self, target: R, max_step: R) -> R {
         self.y += crate::num::clamp(target - self.y, -max_step, max_step);
         self.y
     }
@@ -25,25 +33,25 @@ impl RateLimiter {
 /// which converges monotonically; basic operations only, so every target gets the same
 /// bits. A draw beyond what the connector can pass (`v_b^2 / 4r`) is limited to 95 % of it.
 #[inline]
-pub fn connector(p: f32, v_b: f32, r: f32) -> (f32, f32, f32) {
+pub fn connector<R: Real>(p: R, v_b: R, r: R) -> (R, R, R) {
     // Not `v_b <= 0.0`: NaN must take this branch too.
     #[allow(clippy::neg_cmp_op_on_partial_ord)]
-    if !(v_b > 0.0) {
-        return (0.0, 0.0, 0.0);
+    if !(v_b > R::ZERO) {
+        return (R::ZERO, R::ZERO, R::ZERO);
     }
     let mut p = p;
-    if r > 0.0 {
-        let p_max = 0.95 * v_b * v_b / (4.0 * r);
+    if r > R::ZERO {
+        let p_max = R::lit(0.95) * v_b * v_b / (R::lit(4.0) * r);
         if p > p_max {
             p = p_max;
         }
     }
     let mut i = p / v_b;
-    if r > 0.0 {
+    if r > R::ZERO {
         for _ in 0..4 {
             let f = r * i * i - v_b * i + p;
-            let df = 2.0 * r * i - v_b;
-            if df == 0.0 {
+            let df = R::lit(2.0) * r * i - v_b;
+            if df == R::ZERO {
                 break;
             }
             i -= f / df;

@@ -7,6 +7,11 @@
 //! and on a Cortex-M4F and produces the same bits on both: f32 throughout, no FMA, no
 //! transcendental functions in the step, f64 only at construction with basic operations.
 //!
+//! The physics is written once, generic over the scalar [`Real`]: the f32 twin above,
+//! and with feature `fixed` a fixed-point twin ([`Fx`], `fixed::types::I32F32`) for
+//! cores without an FPU (the Cortex-M3 firmware), from the same source
+//! ([`Model::new_fx`], [`Simulation::new_fx`]).
+//!
 //! Structure, one module a block:
 //! - [`profile`]: test-profile engine (sets, hold/interpolate, scaling and signs).
 //! - [`throttle`]: set point -> voltage -> mapped throttle -> target speed.
@@ -43,7 +48,7 @@ pub mod effects;
 pub mod electrics;
 mod expm;
 pub mod model;
-mod num;
+pub mod num;
 pub mod outputs;
 pub mod params;
 #[cfg(feature = "profile-hooks")]
@@ -56,6 +61,9 @@ pub mod throttle;
 pub use data::Maps;
 pub use effects::Effects;
 pub use model::{Config, ConfigError, Inputs, Model};
+pub use num::Real;
+#[cfg(feature = "fixed")]
+pub use num::{saturations, Fx};
 pub use outputs::{Channel, Outputs, MEASURED, N_CHANNELS};
 pub use params::{CouplingStiffness, Params, RateSet, SpeedTarget};
 pub use profile::{Builtin, Profile, ProfileError, ProfileSet, SetMode, SetPoints};

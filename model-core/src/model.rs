@@ -5,16 +5,21 @@
 //! blocks' constants); `State` holds what the step changes. Each stateful block (PID,
 //! delay line, backlash) is a constants struct with a method
 //! taking its own state struct, called from one place in [`Model::step`].
+//!
+//! The step is written once, generic over the scalar `R: Real` (`crate::num`): f32, and
+//! with feature `fixed` the fixed-point `Fx`. Coefficients are computed in f32/f64 at
+//! construction and converted once (`Real::lit`, `Real::from_f64`).
 
 use crate::backlash::{Backlash, BacklashState};
 use crate::chain::{Chain, ChainState};
 use crate::controller::{PidConfig, PidState};
-use crate::curtis::{self, RateCase};
+use crate::curtis::{self, RateCase, RateScale};
 use crate::data::Maps;
 use crate::delay::{Delay, DelayState};
 use crate::drivetrain::{SideDisc, SideParams, NS, PHI_AF, RAD_S_PER_RPM, RPM_PER_RAD_S, W_A, W_F, W_L};
 use crate::effects::Effects;
 use crate::electrics::{connector, RateLimiter};
+use crate::num::{clamp, Real};
 use crate::outputs::{Channel as C, Outputs, MEASURED};
 use crate::params::{Params, SpeedTarget};
 use crate::profile::SetPoints;
@@ -85,9 +90,9 @@ pub struct Inputs {
 
 /// A set point with its location on the 2-D maps' shared grid.
 #[derive(Debug, Clone, Copy)]
-struct Query {
-    v: f32,
-    loc: Loc,
+struct Query<R> {
+    v: R,
+    loc: Loc<R>,
 }
 
 /// Last intervals found per lookup: throttle, loads L/R, load mean on the 2-D grid;
@@ -104,74 +109,104 @@ struct Hints {
 
 /// What one step computed besides the state, for the outputs.
 #[derive(Debug, Clone, Copy)]
-struct StepSignals {
-    thr_sp: f32,
-    load_sp: [f32; 2],
-    mapped: f32,
-    target: f32,
+struct StepSignals<R> {
+    thr_sp: R,
+    load_sp: [R; 2],
+    mapped: R,
+    target: R,
     case: RateCase,
-    t_motor: f32,
-    t_load: [f32; 2],
-    i_phase: [f32; 2],
-    v_b: f32,
-    i_dc: f32,
-    v_dc: f32,
-    i_ld: [f32; 2],
+    t_motor: R,
+    t_load: [R; 2],
+    i_phase: [R; 2],
+    v_b: R,
+    i_dc: R,
+    v_dc: R,
+    i_ld: [R; 2],
 }
 
 /// Everything the step reads but never changes, computed once at construction.
 #[derive(Debug, Clone)]
-struct Coeffs {
+struct Coeffs<R> {
     /// All 2-D maps share one grid: locate each set point once per step.
     shared_grid: bool,
-    p: Params,
-    fx: Effects,
+    /// The parameters in the step's scalar (for f32 the values given).
+    p: Params<R>,
     mode: SpeedTarget,
     dt_us: u32,
-    dt: f32,
+    dt: R,
     side: [SideParams; 2],
-    disc: [SideDisc; 2],
+    disc: [SideDisc<R>; 2],
     /// Discretization with the motor share removed (gears apart); only with backlash.
-    disc_free: [SideDisc; 2],
-    pid: PidConfig,
+    disc_free: [SideDisc<R>; 2],
+    pid: PidConfig<R>,
     delay: Delay,
-    backlash: Backlash,
-    /// [ohm] connector resistance.
-    r_conn: f32,
+    backlash: Backlash<R>,
     /// Each measured channel's sensor, amplifier and acquisition.
-    chain: Chain,
+    chain: Chain<R>,
+    /// The constants and effect parameters the step reads, in its scalar.
+    k: StepConsts<R>,
+}
+
+/// Every constant and effect parameter the step reads, in the step's scalar, converted
+/// once at construction (for f32 the values themselves, so the same bits).
+#[derive(Debug, Clone, Copy)]
+struct StepConsts<R> {
+    half: R,
+    two: R,
+    hundred: R,
+    /// [rpm per rad/s] and its inverse.
+    rpm_per_rad_s: R,
+    rad_s_per_rpm: R,
+    /// [rad/s] [`DIFF_FRICTION_EPS`].
+    diff_eps: R,
+    /// [N m], [N m s/rad] the differential's friction (effect).
+    diff_coulomb: R,
+    diff_viscous: R,
+    /// [-] axle friction scale per side (effect).
+    fric_scale: [R; 2],
+    /// [-] the Curtis rate multipliers (effect).
+    rate_scale: RateScale<R>,
+    /// [-] regenerated power lost (effect).
+    regen_loss: R,
+    /// [ohm] the DPU's source resistance (effect; 0 off).
+    supply_r: R,
+    /// [ohm] connector resistance.
+    r_conn: R,
+    /// [N m/rad], [N m s/rad] flange stiffness and damping per side, for its torque.
+    k_f: [R; 2],
+    c_f: [R; 2],
 }
 
 /// Everything the step changes: one fixed-size struct, no heap.
 #[derive(Debug, Clone)]
-struct State {
-    x: [[f32; NS]; 2],
+struct State<R> {
+    x: [[R; NS]; 2],
     /// Low parts of the compensated state (see `drivetrain`).
-    x_lo: [[f32; NS]; 2],
-    pid: PidState,
-    cmd_rpm: f32,
+    x_lo: [[R; NS]; 2],
+    pid: PidState<R>,
+    cmd_rpm: R,
     /// Low part of the compensated speed command.
-    cmd_lo: f32,
-    p_sut: RateLimiter,
+    cmd_lo: R,
+    p_sut: RateLimiter<R>,
     /// The mapped mechanical power, through the same rate limiter as the SuT power map.
-    p_mech_ref: RateLimiter,
-    p_load: [RateLimiter; 2],
-    delay: DelayState,
-    backlash: BacklashState,
+    p_mech_ref: RateLimiter<R>,
+    p_load: [RateLimiter<R>; 2],
+    delay: DelayState<R>,
+    backlash: BacklashState<R>,
     /// [V] busbar voltage of the last step (`supply_resistance`; 0 before the first).
-    v_b: f32,
+    v_b: R,
     t_us: u64,
     /// Search hints for the table lookups (see `table::locate_hinted`).
     hints: Hints,
-    chain: ChainState,
+    chain: ChainState<R>,
 }
 
 /// The twin: maps, coefficients and state.
 #[derive(Debug, Clone)]
-pub struct Model<'a> {
-    maps: Maps<'a>,
-    c: Coeffs,
-    s: State,
+pub struct Model<'a, R = f32> {
+    maps: Maps<'a, R>,
+    c: Coeffs<R>,
+    s: State<R>,
     /// Called at each block boundary of the step (feature `profile-hooks`).
     #[cfg(feature = "profile-hooks")]
     probe: crate::probe::Probe,
@@ -188,9 +223,44 @@ impl Model<'static> {
     }
 }
 
-impl<'a> Model<'a> {
+/// The public step of each instance is a concrete (non-generic) function, so its code,
+/// and the generic step's instantiation it calls, are generated here in model-core with
+/// model-core's optimisation level, not in the calling crate's (the firmware is built for
+/// size, which costs the step about a third more instructions).
+impl Model<'_, f32> {
+    /// Parameters in use.
+    pub fn params(&self) -> &Params {
+        &self.c.p
+    }
+
+    /// Advance one step with set points held over it; returns the outputs at the end.
+    #[inline(never)]
+    pub fn step(&mut self, inp: &Inputs) -> Outputs {
+        self.advance(inp)
+    }
+}
+
+#[cfg(feature = "fixed")]
+impl Model<'_, crate::num::Fx> {
+    /// Advance one step of the fixed-point twin; returns the outputs at the end.
+    #[inline(never)]
+    pub fn step(&mut self, inp: &Inputs) -> Outputs<crate::num::Fx> {
+        self.advance(inp)
+    }
+}
+
+#[cfg(feature = "fixed")]
+impl Model<'static, crate::num::Fx> {
+    /// The fixed-point twin ([`crate::num::Fx`]) on the maps compiled into the binary in
+    /// its format: the same physics source as [`Model::new`].
+    pub fn new_fx(cfg: &Config) -> Result<Self, ConfigError> {
+        Model::with_maps(cfg, Maps::builtin_fx())
+    }
+}
+
+impl<'a, R: Real> Model<'a, R> {
     /// A model on the given maps (identified maps loaded at run time on the host).
-    pub fn with_maps(cfg: &Config, maps: Maps<'a>) -> Result<Self, ConfigError> {
+    pub fn with_maps(cfg: &Config, maps: Maps<'a, R>) -> Result<Self, ConfigError> {
         if cfg.dt_us < DT_US_RANGE.0 || cfg.dt_us > DT_US_RANGE.1 {
             return Err(ConfigError::StepSize(cfg.dt_us));
         }
@@ -229,7 +299,7 @@ impl<'a> Model<'a> {
             c_c,
         };
         let side = [mk(0), mk(1)];
-        let disc = [SideDisc::new(&side[0], dt_s), SideDisc::new(&side[1], dt_s)];
+        let disc: [SideDisc<R>; 2] = [SideDisc::new(&side[0], dt_s), SideDisc::new(&side[1], dt_s)];
         // Backlash: the motor share of the SuT inertia can part from the differential.
         let gap_rad = fx.gear_backlash.backlash_deg * (core::f32::consts::PI / 180.0);
         let j_m = p.sut_motor_inertia_share * p.sut_inertia * fx.inertia_scale[0];
@@ -240,37 +310,54 @@ impl<'a> Model<'a> {
         } else {
             disc
         };
-        let backlash = Backlash::new(gap_rad, j_m, j_side_free);
-        let dt = dt_s as f32;
+        let backlash = Backlash::new(R::lit(gap_rad), R::lit(j_m), R::lit(j_side_free));
+        let dt = R::from_f64(dt_s);
         let r_conn = fx.connector_resistance.unwrap_or(p.connector_resistance);
+        let pr: Params<R> = p.to();
+        let k = StepConsts {
+            half: R::lit(0.5),
+            two: R::lit(2.0),
+            hundred: R::lit(100.0),
+            rpm_per_rad_s: R::lit(RPM_PER_RAD_S),
+            rad_s_per_rpm: R::lit(RAD_S_PER_RPM),
+            diff_eps: R::lit(DIFF_FRICTION_EPS),
+            diff_coulomb: R::lit(fx.differential_friction.coulomb_nm),
+            diff_viscous: R::lit(fx.differential_friction.viscous_nm_s),
+            fric_scale: fx.axle_friction_scale.map(R::lit),
+            rate_scale: fx.inverter_rate_scale.map(|d| d.map(R::lit)),
+            regen_loss: R::lit(fx.regen_loss),
+            supply_r: R::lit(fx.supply_resistance),
+            r_conn: R::lit(r_conn),
+            k_f: side.map(|s| R::lit(s.k_f)),
+            c_f: side.map(|s| R::lit(s.c_f)),
+        };
         let c = Coeffs {
             shared_grid: maps.shared_2d_grid(),
-            p: *p,
-            fx: *fx,
+            p: pr,
             mode: cfg.speed_target,
             dt_us: cfg.dt_us,
             dt,
             side,
             disc,
             disc_free,
-            pid: PidConfig::new(p, dt),
+            pid: PidConfig::new(&pr, dt),
             delay: Delay::new(fx.controller_delay_s, dt_s),
             backlash,
-            r_conn,
             chain: Chain::new(fx.sensor_gain, fx.sensor_offset, fx.sensor_lag_s, fx.sensor_delay_s, dt_s),
+            k,
         };
         let s = State {
-            x: [[0.0; NS]; 2],
-            x_lo: [[0.0; NS]; 2],
+            x: [[R::ZERO; NS]; 2],
+            x_lo: [[R::ZERO; NS]; 2],
             pid: PidState::default(),
-            cmd_rpm: 0.0,
-            cmd_lo: 0.0,
+            cmd_rpm: R::ZERO,
+            cmd_lo: R::ZERO,
             p_sut: RateLimiter::default(),
             p_mech_ref: RateLimiter::default(),
             p_load: [RateLimiter::default(); 2],
             delay: DelayState::default(),
             backlash: backlash.initial(),
-            v_b: 0.0,
+            v_b: R::ZERO,
             t_us: 0,
             hints: Hints::default(),
             chain: ChainState::default(),
@@ -301,11 +388,6 @@ impl<'a> Model<'a> {
         self.s.t_us
     }
 
-    /// Parameters in use.
-    pub fn params(&self) -> &Params {
-        &self.c.p
-    }
-
     /// Per-side mechanical parameters in use (after effects).
     pub fn side_params(&self) -> &[SideParams; 2] {
         &self.c.side
@@ -313,9 +395,9 @@ impl<'a> Model<'a> {
 
     /// Where a throttle / load set point falls on the shared grid (if there is one).
     #[inline]
-    fn query(shared: bool, t: &Table2<'_>, v: f32, throttle_axis: bool, hint: &mut usize) -> Query {
+    fn query(shared: bool, t: &Table2<'_, R>, v: R, throttle_axis: bool, hint: &mut usize) -> Query<R> {
         let loc = match (shared, throttle_axis) {
-            (false, _) => (0, 0.0),
+            (false, _) => (0, R::ZERO),
             (true, true) => locate_hinted(t.x(), v, hint),
             (true, false) => locate_hinted(t.y(), v, hint),
         };
@@ -323,17 +405,19 @@ impl<'a> Model<'a> {
     }
 
     /// Advance one step with set points held over it; returns the outputs at the end.
-    pub fn step(&mut self, inp: &Inputs) -> Outputs {
+    /// The one body of the step for every scalar; callers use [`Model::step`].
+    pub(crate) fn advance(&mut self, inp: &Inputs) -> Outputs<R> {
         probe!(self, RateLogic);
         let (c, s) = (&self.c, &mut self.s);
         let p = c.p;
-        let fx = c.fx;
+        let k = c.k;
+        let (zero, one, half) = (R::ZERO, R::ONE, k.half);
         let dt = c.dt;
         let finite_pct = |v: f32| {
             if v.is_finite() {
-                v.clamp(-100.0, 100.0)
+                clamp(R::lit(v), -k.hundred, k.hundred)
             } else {
-                0.0
+                zero
             }
         };
         let thr_sp = finite_pct(inp.sp.throttle_pct);
@@ -357,44 +441,37 @@ impl<'a> Model<'a> {
         probe!(self, RateLogic);
         let n = p.sut_gear_ratio;
         let [xl, xr] = s.x;
-        let w_case = 0.5 * (xl[W_A] + xr[W_A]);
+        let w_case = half * (xl[W_A] + xr[W_A]);
         let w_motor = n * s.backlash.motor_speed(w_case);
-        let (rate, case) = curtis::ramp_rate(
-            &p,
-            &fx.inverter_rate_scale,
-            mapped,
-            target,
-            s.cmd_rpm,
-            w_motor * RPM_PER_RAD_S,
-        );
+        let (rate, case) =
+            curtis::ramp_rate(&p, &k.rate_scale, mapped, target, s.cmd_rpm, w_motor * k.rpm_per_rad_s);
         (s.cmd_rpm, s.cmd_lo) = curtis::advance_compensated(s.cmd_rpm, s.cmd_lo, target, rate, dt);
 
         // Speed controller -> motor torque -> gearbox -> open differential.
         probe!(self, Controller);
-        let t_motor = s.pid.update(&c.pid, s.cmd_rpm * RAD_S_PER_RPM, w_motor);
-        let df = fx.differential_friction;
-        let t_diff = df.coulomb_nm * (w_case / DIFF_FRICTION_EPS).clamp(-1.0, 1.0) + df.viscous_nm_s * w_case;
-        let t_in = 0.5 * (s.backlash.case_torque(n * t_motor) - t_diff);
+        let t_motor = s.pid.update(&c.pid, s.cmd_rpm * k.rad_s_per_rpm, w_motor);
+        let t_diff = k.diff_coulomb * clamp(w_case / k.diff_eps, -one, one) + k.diff_viscous * w_case;
+        let t_in = half * (s.backlash.case_torque(n * t_motor) - t_diff);
         let discs = if s.backlash.is_free() { &c.disc_free } else { &c.disc };
 
         // Per side: friction and load motor at the load node, exact linear update.
         probe!(self, Mechanics);
-        let fade = p.regen_fade_rpm * RAD_S_PER_RPM;
-        let drive_dir = if thr_sp < 0.0 { -1.0 } else { 1.0 };
-        let mut t_load = [0.0f32; 2];
+        let fade = p.regen_fade_rpm * k.rad_s_per_rpm;
+        let drive_dir = if thr_sp < zero { -one } else { one };
+        let mut t_load = [zero; 2];
         // Mechanical power the maps account for: the nominal friction and the load motors
         // at the load-side speeds (see `unmapped power` below).
-        let mut p_mapped_mech = 0.0f32;
+        let mut p_mapped_mech = zero;
         for (i, (((x, x_lo), disc), tl)) in
             s.x.iter_mut().zip(s.x_lo.iter_mut()).zip(discs.iter()).zip(t_load.iter_mut()).enumerate()
         {
             let w_l = x[W_L];
-            let w_rpm = w_l * RPM_PER_RAD_S;
+            let w_rpm = w_l * k.rpm_per_rad_s;
             probe!(self, Tables);
             let hint = &mut s.hints.friction[i];
             let fric_nominal = self.maps.friction[i].eval_hinted(w_rpm, hint);
             probe!(self, Mechanics);
-            let fric = fric_nominal * fx.axle_friction_scale[i];
+            let fric = fric_nominal * k.fric_scale.get(i).copied().unwrap_or(one);
             probe!(self, Tables);
             let t_map = match (c.shared_grid, q_load.get(i)) {
                 (true, Some(q)) => self.maps.load_torque[i].eval_loc(q_thr.loc, q.loc),
@@ -403,15 +480,15 @@ impl<'a> Model<'a> {
             probe!(self, Mechanics);
             // Regenerating torque brakes whatever way the shaft turns and fades out near
             // standstill (nothing left to regenerate); motoring drives in the run direction.
-            *tl = if t_map >= 0.0 {
-                t_map * (if fade > 0.0 { (w_l / fade).clamp(-1.0, 1.0) } else { 0.0 })
+            *tl = if t_map >= zero {
+                t_map * (if fade > zero { clamp(w_l / fade, -one, one) } else { zero })
             } else {
                 // Motoring: as mapped up to the base speed, then fading linearly to zero
                 // at the no-load speed in the direction it drives (back-EMF meets the
                 // supply). Bounds what one motoring load can do through the open diff.
-                let along = w_l * drive_dir * p.load_gear_ratio * RPM_PER_RAD_S;
+                let along = w_l * drive_dir * p.load_gear_ratio * k.rpm_per_rad_s;
                 let span = p.load_no_load_rpm - p.load_base_rpm;
-                t_map * drive_dir * ((p.load_no_load_rpm - along) / span).clamp(0.0, 1.0)
+                t_map * drive_dir * clamp((p.load_no_load_rpm - along) / span, zero, one)
             };
             p_mapped_mech += (fric_nominal + *tl) * w_l;
             disc.step_compensated(x, x_lo, [t_in, fric + *tl]);
@@ -423,10 +500,10 @@ impl<'a> Model<'a> {
 
         // Electrics: maps -> rate limiters -> currents; supply current is the sum.
         probe!(self, Tables);
-        let load_mean = 0.5 * (load_sp[0] + load_sp[1]);
-        let regen = |pw: f32| {
-            if pw < 0.0 {
-                pw * (1.0 - fx.regen_loss)
+        let load_mean = half * (load_sp[0] + load_sp[1]);
+        let regen = |pw: R| {
+            if pw < zero {
+                pw * (one - k.regen_loss)
             } else {
                 pw
             }
@@ -451,27 +528,27 @@ impl<'a> Model<'a> {
         // and its mechanical counterpart together, not one instantly and one slowly.
         let p_ref = s.p_mech_ref.update(p_mapped_mech, p.sut_power_rate_w_per_s * dt);
         let p_unmapped = t_motor * w_motor - p_ref;
-        let p_unmapped_el = if p_unmapped > 0.0 {
+        let p_unmapped_el = if p_unmapped > zero {
             p_unmapped / p.sut_drive_efficiency
         } else {
             p_unmapped * p.sut_drive_efficiency
         };
         let p_sut = regen(s.p_sut.update(sut_map, p.sut_power_rate_w_per_s * dt) + p_unmapped_el);
-        let mut p_ld = [0.0f32; 2];
+        let mut p_ld = [zero; 2];
         for ((pl, lim), m) in p_ld.iter_mut().zip(s.p_load.iter_mut()).zip(load_map) {
             *pl = regen(lim.update(m, p.load_power_rate_w_per_s * dt));
         }
-        let v_s = inp.supply_v;
-        let r_conn = c.r_conn;
+        let v_s = R::lit(inp.supply_v);
+        let r_conn = k.r_conn;
         // Currents drawn at busbar voltage `v`: the SuT through the connector, the loads
         // directly.
-        let draw = |v: f32| {
-            let i_ld = if v > 0.0 { [p_ld[0] / v, p_ld[1] / v] } else { [0.0, 0.0] };
+        let draw = |v: R| {
+            let i_ld = if v > zero { [p_ld[0] / v, p_ld[1] / v] } else { [zero, zero] };
             (connector(p_sut, v, r_conn), i_ld)
         };
         let mut v_b = v_s;
-        if fx.supply_resistance > 0.0 {
-            v_b = busbar_voltage(v_s, fx.supply_resistance, s.v_b, p_sut, draw);
+        if k.supply_r > zero {
+            v_b = busbar_voltage(v_s, k.supply_r, s.v_b, p_sut, draw);
             s.v_b = v_b;
         }
         let (sol, i_ld) = draw(v_b);
@@ -495,7 +572,7 @@ impl<'a> Model<'a> {
         })
     }
 
-    fn outputs(&mut self, sig: &StepSignals) -> Outputs {
+    fn outputs(&mut self, sig: &StepSignals<R>) -> Outputs<R> {
         let StepSignals {
             thr_sp,
             load_sp,
@@ -511,23 +588,24 @@ impl<'a> Model<'a> {
             i_ld,
         } = *sig;
         let p = &self.c.p;
+        let k = &self.c.k;
+        let (half, rpm) = (k.half, k.rpm_per_rad_s);
         let [xl, xr] = self.s.x;
-        let flange = |x: &[f32; NS], s: &SideParams| s.k_f * x[PHI_AF] + s.c_f * (x[W_A] - x[W_F]);
-        let [sl, sr] = &self.c.side;
-        let motor_rpm = p.sut_gear_ratio * 0.5 * (xl[W_A] + xr[W_A]) * RPM_PER_RAD_S;
-        let i_xlml = 0.5 * i_ld[0];
+        let flange = |x: &[R; NS], i: usize| k.k_f[i] * x[PHI_AF] + k.c_f[i] * (x[W_A] - x[W_F]);
+        let motor_rpm = p.sut_gear_ratio * half * (xl[W_A] + xr[W_A]) * rpm;
+        let i_xlml = half * i_ld[0];
         // The physical values of the measured channels, in `MEASURED` order.
         let raw = [
             throttle::voltage(p, thr_sp),
             motor_rpm,
-            flange(&xl, sl),
-            flange(&xr, sr),
-            xl[W_F] * RPM_PER_RAD_S,
-            xr[W_F] * RPM_PER_RAD_S,
-            xr[W_L] * RPM_PER_RAD_S,
+            flange(&xl, 0),
+            flange(&xr, 1),
+            xl[W_F] * rpm,
+            xr[W_F] * rpm,
+            xr[W_L] * rpm,
             i_xlml,
             i_xlml,
-            0.5 * i_ld[1],
+            half * i_ld[1],
             i_dc + i_ld[0] + i_ld[1],
             v_b,
             i_dc,
@@ -535,7 +613,7 @@ impl<'a> Model<'a> {
         ];
         let m = self.c.chain.apply(&mut self.s.chain, &raw);
 
-        let mut o = Outputs { t_us: self.s.t_us, ..Outputs::default() };
+        let mut o = Outputs { t_us: self.s.t_us, ..Outputs::zero() };
         for (c, v) in MEASURED.iter().zip(m) {
             o.set(*c, v);
         }
@@ -548,11 +626,11 @@ impl<'a> Model<'a> {
         o.set(C::PDpu, v_b * i_dpu);
         o.set(C::PSutInv, v_dc * i_dc);
         o.set(C::PLml, i_xlml_sum * v_b);
-        o.set(C::PLmr, 2.0 * i_xlmr * v_b);
+        o.set(C::PLmr, k.two * i_xlmr * v_b);
         o.set(C::PConn, (v_b - v_dc) * i_dc);
-        o.set(C::TorqueTot, 0.5 * (c_l + c_r));
+        o.set(C::TorqueTot, half * (c_l + c_r));
         o.set(C::TorqueDiff, c_l - c_r);
-        o.set(C::SpeedTot, 0.5 * (t_l + t_r));
+        o.set(C::SpeedTot, half * (t_l + t_r));
         o.set(C::SpeedDiff, t_l - t_r);
         o.set(C::ThrottleSp, thr_sp);
         o.set(C::LoadLSp, load_sp[0]);
@@ -560,14 +638,14 @@ impl<'a> Model<'a> {
         o.set(C::ThrottleMapped, mapped);
         o.set(C::SpeedTarget, target);
         o.set(C::SpeedCmd, self.s.cmd_rpm);
-        o.set(C::RateCase, f32::from(case as u8));
+        o.set(C::RateCase, R::from_u8(case as u8));
         o.set(C::SuTTorque, t_motor);
         o.set(C::LoadTorqueL, t_load[0]);
         o.set(C::LoadTorqueR, t_load[1]);
         o.set(C::ILmlPhase, i_phase[0]);
         o.set(C::ILmrPhase, i_phase[1]);
-        o.set(C::LoadSpeedL, xl[W_L] * RPM_PER_RAD_S * p.load_gear_ratio);
-        o.set(C::LoadSpeedR, xr[W_L] * RPM_PER_RAD_S * p.load_gear_ratio);
+        o.set(C::LoadSpeedL, xl[W_L] * rpm * p.load_gear_ratio);
+        o.set(C::LoadSpeedR, xr[W_L] * rpm * p.load_gear_ratio);
         o
     }
 }
@@ -581,18 +659,19 @@ impl<'a> Model<'a> {
 /// a fixed number of iterations (same bits everywhere); a fixed-point pass where the
 /// slope is not positive.
 #[inline]
-fn busbar_voltage(
-    v_s: f32,
-    r_s: f32,
-    v_last: f32,
-    p_sut: f32,
-    draw: impl Fn(f32) -> ((f32, f32, f32), [f32; 2]),
-) -> f32 {
-    let mut v = if v_last > 0.0 { v_last } else { v_s };
+fn busbar_voltage<R: Real>(
+    v_s: R,
+    r_s: R,
+    v_last: R,
+    p_sut: R,
+    draw: impl Fn(R) -> ((R, R, R), [R; 2]),
+) -> R {
+    let zero = R::ZERO;
+    let mut v = if v_last > zero { v_last } else { v_s };
     for _ in 0..8 {
         let ((i_c, v_dc, p_eff), i_ld) = draw(v);
         #[allow(clippy::neg_cmp_op_on_partial_ord)]
-        if !(v > 0.0) {
+        if !(v > zero) {
             return v_s;
         }
         let i = i_c + i_ld[0] + i_ld[1];
@@ -602,16 +681,16 @@ fn busbar_voltage(
             i_c / v
         } else {
             let den = v_dc - (v - v_dc);
-            if den != 0.0 {
+            if den != zero {
                 -i_c / den
             } else {
-                0.0
+                zero
             }
         };
         let di = di_c - (i_ld[0] + i_ld[1]) / v;
         let g = v - v_s + r_s * i;
-        let slope = 1.0 + r_s * di;
-        v = if slope > 0.0 { v - g / slope } else { v_s - r_s * i };
+        let slope = R::ONE + r_s * di;
+        v = if slope > zero { v - g / slope } else { v_s - r_s * i };
     }
     v
 }
@@ -619,7 +698,7 @@ fn busbar_voltage(
 /// A 2-D map at (throttle, load) set points: on the located grid cells when all maps
 /// share one grid, else by its own search.
 #[inline]
-fn map2(shared_grid: bool, t: &Table2<'_>, thr: Query, load: Query) -> f32 {
+fn map2<R: Real>(shared_grid: bool, t: &Table2<'_, R>, thr: Query<R>, load: Query<R>) -> R {
     if shared_grid {
         t.eval_loc(thr.loc, load.loc)
     } else {

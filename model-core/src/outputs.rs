@@ -1,6 +1,8 @@
 //! Output channels: the bench's measured channels under their export names and units
 //! (thesis tables 5.1, 5.5, 5.12, 5.13), the derived quantities, and internal signals.
 
+use crate::num::Real;
+
 macro_rules! channels {
     ($($var:ident => $name:literal, $key:literal, $unit:literal, $doc:literal;)*) => {
         /// One output channel. `Channel as usize` indexes [`Outputs::values`].
@@ -95,18 +97,29 @@ pub const MEASURED: &[Channel] = &[
 
 /// All outputs of one step.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Outputs {
+pub struct Outputs<R = f32> {
     /// [µs] time at the end of the step.
     pub t_us: u64,
     /// Channel values, indexed by `Channel as usize`.
-    pub values: [f32; N_CHANNELS],
+    pub values: [R; N_CHANNELS],
 }
 
-impl Outputs {
+impl<R: Real> Outputs<R> {
+    /// All channels 0 at time 0 (for f32 the same as `default()`).
+    pub fn zero() -> Self {
+        Self { t_us: 0, values: [R::ZERO; N_CHANNELS] }
+    }
+
+    /// Every channel as f32 ([`Real::to_f32`]: the values themselves for the f32 twin,
+    /// rounded to the nearest f32 for the fixed-point twin).
+    pub fn to_f32(&self) -> Outputs<f32> {
+        Outputs { t_us: self.t_us, values: self.values.map(Real::to_f32) }
+    }
+
     /// Value of one channel.
     #[inline]
-    pub fn get(&self, c: Channel) -> f32 {
-        self.values.get(c as usize).copied().unwrap_or(f32::NAN)
+    pub fn get(&self, c: Channel) -> R {
+        self.values.get(c as usize).copied().unwrap_or(R::lit(f32::NAN))
     }
 
     /// The first channel (in `Channel::ALL` order) whose value is not finite: a run that
@@ -116,7 +129,7 @@ impl Outputs {
     }
 
     #[inline]
-    pub(crate) fn set(&mut self, c: Channel, v: f32) {
+    pub(crate) fn set(&mut self, c: Channel, v: R) {
         if let Some(s) = self.values.get_mut(c as usize) {
             *s = v;
         }
@@ -130,7 +143,7 @@ impl Outputs {
 
 impl Default for Outputs {
     fn default() -> Self {
-        Self { t_us: 0, values: [0.0; N_CHANNELS] }
+        Self::zero()
     }
 }
 

@@ -1,6 +1,7 @@
 //! Scalar parameters, with the thesis values (from `data/parameters.toml`) as defaults.
 
 use crate::data as d;
+use crate::num::Real;
 
 /// Which Curtis rate parameter set drives the rate logic (thesis tables 5.16 / 5.17).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -36,22 +37,22 @@ pub enum CouplingStiffness {
 /// HS/LS thresholds in percent of Typical Max Speed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct DirectionRates {
-    pub hs_pct: f32,
-    pub ls_pct: f32,
-    pub accel_hs_s: f32,
-    pub accel_ls_s: f32,
-    pub low_accel_s: f32,
-    pub neutral_decel_hs_s: f32,
-    pub neutral_decel_ls_s: f32,
-    pub partial_decel_s: f32,
+pub struct DirectionRates<R = f32> {
+    pub hs_pct: R,
+    pub ls_pct: R,
+    pub accel_hs_s: R,
+    pub accel_ls_s: R,
+    pub low_accel_s: R,
+    pub neutral_decel_hs_s: R,
+    pub neutral_decel_ls_s: R,
+    pub partial_decel_s: R,
 }
 
 /// Rate parameters for both directions: `[forward, reverse]`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct RateParams {
-    pub dir: [DirectionRates; 2],
+pub struct RateParams<R = f32> {
+    pub dir: [DirectionRates<R>; 2],
 }
 
 impl RateParams {
@@ -120,66 +121,66 @@ impl RateParams {
 /// field docs; mechanical values in the axle frame unless named `motor`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Params {
+pub struct Params<R = f32> {
     /// [V/%] throttle volts per set-point percent.
-    pub throttle_volts_per_pct: f32,
+    pub throttle_volts_per_pct: R,
     /// [rpm] Max Speed Fwd / Rev (parameter approach).
-    pub max_speed_rpm: [f32; 2],
+    pub max_speed_rpm: [R; 2],
     /// [rpm] Typical Max Speed: rates are normalised to it.
-    pub typical_max_speed_rpm: f32,
+    pub typical_max_speed_rpm: R,
     /// [rpm] measured speed limits Fwd / Rev.
-    pub speed_limit_rpm: [f32; 2],
+    pub speed_limit_rpm: [R; 2],
     /// [%] mapped throttle above which acceleration is "full throttle".
-    pub full_throttle_pct: f32,
+    pub full_throttle_pct: R,
     /// [%] mapped throttle below which acceleration is "low".
-    pub low_throttle_pct: f32,
+    pub low_throttle_pct: R,
     /// Curtis rates.
-    pub rates: RateParams,
+    pub rates: RateParams<R>,
     /// [N m/(rad/s)], [N m/rad], [N m s/rad] PID gains, motor frame.
-    pub pid_kp: f32,
-    pub pid_ki: f32,
-    pub pid_kd: f32,
+    pub pid_kp: R,
+    pub pid_ki: R,
+    pub pid_kd: R,
     /// [s] derivative filter.
-    pub pid_d_filter_s: f32,
+    pub pid_d_filter_s: R,
     /// [N m] motor torque limit, motor frame.
-    pub motor_torque_max_nm: f32,
+    pub motor_torque_max_nm: R,
     /// [W] motor mechanical power limit.
-    pub motor_power_max_w: f32,
+    pub motor_power_max_w: R,
     /// [-] SuT gearbox ratio (motor / axle speed).
-    pub sut_gear_ratio: f32,
+    pub sut_gear_ratio: R,
     /// [-] load gearbox ratio (load motor / axle speed), reporting only.
-    pub load_gear_ratio: f32,
+    pub load_gear_ratio: R,
     /// [kg m^2] total SuT-side inertia, split in halves.
-    pub sut_inertia: f32,
+    pub sut_inertia: R,
     /// [-] share of the SuT inertia on the motor side of the gear mesh (backlash only).
-    pub sut_motor_inertia_share: f32,
+    pub sut_motor_inertia_share: R,
     /// [kg m^2] load inertias L, R.
-    pub load_inertia: [f32; 2],
+    pub load_inertia: [R; 2],
     /// [kg m^2] torque flange inertia.
-    pub flange_inertia: f32,
+    pub flange_inertia: R,
     /// [N m/rad] torque flange stiffness.
-    pub flange_stiffness: f32,
+    pub flange_stiffness: R,
     /// [N m s/rad] torque flange damping.
-    pub flange_damping: f32,
+    pub flange_damping: R,
     /// [N m/rad] flexible coupling stiffness.
-    pub coupling_stiffness: f32,
+    pub coupling_stiffness: R,
     /// [N m s/rad] flexible coupling damping.
-    pub coupling_damping: f32,
+    pub coupling_damping: R,
     /// [rpm] load motor shaft speed where its motoring torque has faded to zero
     /// (back-EMF reaches the supply): bounds what a motoring load can drive.
-    pub load_no_load_rpm: f32,
+    pub load_no_load_rpm: R,
     /// [rpm] load motor shaft speed up to which the motoring torque is as mapped.
-    pub load_base_rpm: f32,
+    pub load_base_rpm: R,
     /// [rpm] axle speed below which a regenerating load's torque fades out.
-    pub regen_fade_rpm: f32,
+    pub regen_fade_rpm: R,
     /// [ohm] busbar-to-SuT-inverter connector resistance.
-    pub connector_resistance: f32,
+    pub connector_resistance: R,
     /// [-] SuT motor + inverter efficiency for power the maps do not cover.
-    pub sut_drive_efficiency: f32,
+    pub sut_drive_efficiency: R,
     /// [W/s] SuT inverter power rate limit.
-    pub sut_power_rate_w_per_s: f32,
+    pub sut_power_rate_w_per_s: R,
     /// [W/s] load power rate limit.
-    pub load_power_rate_w_per_s: f32,
+    pub load_power_rate_w_per_s: R,
 }
 
 impl Params {
@@ -219,6 +220,60 @@ impl Params {
             sut_drive_efficiency: d::SUT_DRIVE_EFFICIENCY,
             sut_power_rate_w_per_s: d::SUT_POWER_RATE_W_PER_S,
             load_power_rate_w_per_s: d::LOAD_POWER_RATE_W_PER_S,
+        }
+    }
+}
+
+impl Params {
+    /// The same parameters in the scalar `R` (each value [`Real::lit`]; for f32 itself).
+    pub fn to<R: Real>(&self) -> Params<R> {
+        Params {
+            throttle_volts_per_pct: R::lit(self.throttle_volts_per_pct),
+            max_speed_rpm: [R::lit(self.max_speed_rpm[0]), R::lit(self.max_speed_rpm[1])],
+            typical_max_speed_rpm: R::lit(self.typical_max_speed_rpm),
+            speed_limit_rpm: [R::lit(self.speed_limit_rpm[0]), R::lit(self.speed_limit_rpm[1])],
+            full_throttle_pct: R::lit(self.full_throttle_pct),
+            low_throttle_pct: R::lit(self.low_throttle_pct),
+            rates: RateParams { dir: [self.rates.dir[0].to(), self.rates.dir[1].to()] },
+            pid_kp: R::lit(self.pid_kp),
+            pid_ki: R::lit(self.pid_ki),
+            pid_kd: R::lit(self.pid_kd),
+            pid_d_filter_s: R::lit(self.pid_d_filter_s),
+            motor_torque_max_nm: R::lit(self.motor_torque_max_nm),
+            motor_power_max_w: R::lit(self.motor_power_max_w),
+            sut_gear_ratio: R::lit(self.sut_gear_ratio),
+            load_gear_ratio: R::lit(self.load_gear_ratio),
+            sut_inertia: R::lit(self.sut_inertia),
+            sut_motor_inertia_share: R::lit(self.sut_motor_inertia_share),
+            load_inertia: [R::lit(self.load_inertia[0]), R::lit(self.load_inertia[1])],
+            flange_inertia: R::lit(self.flange_inertia),
+            flange_stiffness: R::lit(self.flange_stiffness),
+            flange_damping: R::lit(self.flange_damping),
+            coupling_stiffness: R::lit(self.coupling_stiffness),
+            coupling_damping: R::lit(self.coupling_damping),
+            load_no_load_rpm: R::lit(self.load_no_load_rpm),
+            load_base_rpm: R::lit(self.load_base_rpm),
+            regen_fade_rpm: R::lit(self.regen_fade_rpm),
+            connector_resistance: R::lit(self.connector_resistance),
+            sut_drive_efficiency: R::lit(self.sut_drive_efficiency),
+            sut_power_rate_w_per_s: R::lit(self.sut_power_rate_w_per_s),
+            load_power_rate_w_per_s: R::lit(self.load_power_rate_w_per_s),
+        }
+    }
+}
+
+impl DirectionRates {
+    /// The same rates in the scalar `R`.
+    pub fn to<R: Real>(&self) -> DirectionRates<R> {
+        DirectionRates {
+            hs_pct: R::lit(self.hs_pct),
+            ls_pct: R::lit(self.ls_pct),
+            accel_hs_s: R::lit(self.accel_hs_s),
+            accel_ls_s: R::lit(self.accel_ls_s),
+            low_accel_s: R::lit(self.low_accel_s),
+            neutral_decel_hs_s: R::lit(self.neutral_decel_hs_s),
+            neutral_decel_ls_s: R::lit(self.neutral_decel_ls_s),
+            partial_decel_s: R::lit(self.partial_decel_s),
         }
     }
 }

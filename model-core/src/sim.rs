@@ -2,13 +2,14 @@
 //! simulate` both run.
 
 use crate::model::{Config, ConfigError, Inputs, Model};
+use crate::num::Real;
 use crate::outputs::Outputs;
 use crate::profile::Profile;
 
 /// Model + profile + supply voltage.
 #[derive(Debug, Clone)]
-pub struct Simulation<'a> {
-    model: Model<'a>,
+pub struct Simulation<'a, R = f32> {
+    model: Model<'a, R>,
     profile: Profile,
     supply_v: f32,
 }
@@ -20,9 +21,17 @@ impl Simulation<'static> {
     }
 }
 
-impl<'a> Simulation<'a> {
+#[cfg(feature = "fixed")]
+impl Simulation<'static, crate::num::Fx> {
+    /// The fixed-point twin on the built-in maps ([`Model::new_fx`]).
+    pub fn new_fx(cfg: &Config, profile: Profile, supply_v: f32) -> Result<Self, ConfigError> {
+        Ok(Self { model: Model::new_fx(cfg)?, profile, supply_v })
+    }
+}
+
+impl<'a, R: Real> Simulation<'a, R> {
     /// On a model built by the caller (e.g. with run-time maps).
-    pub fn from_model(model: Model<'a>, profile: Profile, supply_v: f32) -> Self {
+    pub fn from_model(model: Model<'a, R>, profile: Profile, supply_v: f32) -> Self {
         Self { model, profile, supply_v }
     }
 
@@ -37,23 +46,23 @@ impl<'a> Simulation<'a> {
     }
 
     /// One step; `None` once the profile is over.
-    pub fn step(&mut self) -> Option<Outputs> {
+    pub fn step(&mut self) -> Option<Outputs<R>> {
         if self.model.t_us() >= self.profile.duration_us() {
             return None;
         }
         let inp = self.inputs();
-        Some(self.model.step(&inp))
+        Some(self.model.advance(&inp))
     }
 
     /// The model.
-    pub fn model(&self) -> &Model<'a> {
+    pub fn model(&self) -> &Model<'a, R> {
         &self.model
     }
 }
 
-impl Iterator for Simulation<'_> {
-    type Item = Outputs;
-    fn next(&mut self) -> Option<Outputs> {
+impl<R: Real> Iterator for Simulation<'_, R> {
+    type Item = Outputs<R>;
+    fn next(&mut self) -> Option<Outputs<R>> {
         self.step()
     }
 }

@@ -21,7 +21,9 @@ pub enum TableError {
     NotFinite,
 }
 
-fn check_grid(x: &[f32]) -> Result<(), TableError> {
+use crate::num::Real;
+
+fn check_grid<R: Real>(x: &[R]) -> Result<(), TableError> {
     if x.len() < 2 {
         return Err(TableError::TooShort);
     }
@@ -36,34 +38,34 @@ fn check_grid(x: &[f32]) -> Result<(), TableError> {
 
 /// Where a query falls on a grid: interval index and fraction. Computing it once and
 /// reusing it for every table on the same grid saves most of a lookup's cost.
-pub type Loc = (usize, f32);
+pub type Loc<R = f32> = (usize, R);
 
 /// Interval index `i` and fraction `t` with `x[i] + t (x[i+1]-x[i]) = q`, clamped.
 #[inline]
-pub fn locate(x: &[f32], q: f32) -> Loc {
+pub fn locate<R: Real>(x: &[R], q: R) -> Loc<R> {
     let n = x.len();
-    let first = x.first().copied().unwrap_or(0.0);
-    let last = x.last().copied().unwrap_or(0.0);
+    let first = x.first().copied().unwrap_or(R::ZERO);
+    let last = x.last().copied().unwrap_or(R::ZERO);
     // Not `q <= first`: NaN must take this branch too.
     #[allow(clippy::neg_cmp_op_on_partial_ord)]
     if !(q > first) || n < 2 {
-        return (0, 0.0);
+        return (0, R::ZERO);
     }
     if q >= last {
-        return (n - 2, 1.0);
+        return (n - 2, R::ONE);
     }
     // First index whose grid value exceeds q; q > x[0] so it is >= 1.
     let hi = x.partition_point(|&v| v <= q);
     let i = hi.saturating_sub(1).min(n - 2);
-    let x0 = x.get(i).copied().unwrap_or(0.0);
-    let x1 = x.get(i + 1).copied().unwrap_or(1.0);
+    let x0 = x.get(i).copied().unwrap_or(R::ZERO);
+    let x1 = x.get(i + 1).copied().unwrap_or(R::ONE);
     (i, (q - x0) / (x1 - x0))
 }
 
 /// [`locate`], trying the interval `*hint` first and updating it: signals move slowly,
 /// so the last interval is almost always still right. Gives exactly `locate`'s result.
 #[inline]
-pub fn locate_hinted(x: &[f32], q: f32, hint: &mut usize) -> Loc {
+pub fn locate_hinted<R: Real>(x: &[R], q: R, hint: &mut usize) -> Loc<R> {
     let h = *hint;
     if let (Some(&first), Some(&last), Some(&x0), Some(&x1)) = (x.first(), x.last(), x.get(h), x.get(h + 1)) {
         if q > first && q < last && q >= x0 && q < x1 {
@@ -77,9 +79,9 @@ pub fn locate_hinted(x: &[f32], q: f32, hint: &mut usize) -> Loc {
 
 /// A 1-D table `y(x)`.
 #[derive(Debug, Clone, Copy)]
-pub struct Table1<'a> {
-    x: &'a [f32],
-    y: &'a [f32],
+pub struct Table1<'a, R = f32> {
+    x: &'a [R],
+    y: &'a [R],
 }
 
 impl<'a> Table1<'a> {
@@ -94,37 +96,39 @@ impl<'a> Table1<'a> {
         }
         Ok(Self { x, y })
     }
+}
 
+impl<'a, R: Real> Table1<'a, R> {
     /// For flash tables already validated by `build.rs`.
-    pub(crate) const fn from_static(x: &'a [f32], y: &'a [f32]) -> Self {
+    pub(crate) const fn from_static(x: &'a [R], y: &'a [R]) -> Self {
         Self { x, y }
     }
 
     /// Grid.
-    pub fn x(&self) -> &'a [f32] {
+    pub fn x(&self) -> &'a [R] {
         self.x
     }
 
     /// Values.
-    pub fn y(&self) -> &'a [f32] {
+    pub fn y(&self) -> &'a [R] {
         self.y
     }
 
     /// Interpolated value; edges clamp.
     #[inline]
-    pub fn eval(&self, q: f32) -> f32 {
+    pub fn eval(&self, q: R) -> R {
         self.eval_loc(locate(self.x, q))
     }
 
     /// [`Table1::eval`] with a search hint (see [`locate_hinted`]).
     #[inline]
-    pub fn eval_hinted(&self, q: f32, hint: &mut usize) -> f32 {
+    pub fn eval_hinted(&self, q: R, hint: &mut usize) -> R {
         self.eval_loc(locate_hinted(self.x, q, hint))
     }
 
     #[inline]
-    fn eval_loc(&self, (i, t): Loc) -> f32 {
-        let y0 = self.y.get(i).copied().unwrap_or(0.0);
+    fn eval_loc(&self, (i, t): Loc<R>) -> R {
+        let y0 = self.y.get(i).copied().unwrap_or(R::ZERO);
         let y1 = self.y.get(i + 1).copied().unwrap_or(y0);
         y0 + t * (y1 - y0)
     }
@@ -133,10 +137,10 @@ impl<'a> Table1<'a> {
 /// A 2-D table `z(x, y)`, values row-major: `z[iy * nx + ix]`.
 /// In this model x is always the throttle set point and y the load set point.
 #[derive(Debug, Clone, Copy)]
-pub struct Table2<'a> {
-    x: &'a [f32],
-    y: &'a [f32],
-    z: &'a [f32],
+pub struct Table2<'a, R = f32> {
+    x: &'a [R],
+    y: &'a [R],
+    z: &'a [R],
 }
 
 impl<'a> Table2<'a> {
@@ -152,42 +156,44 @@ impl<'a> Table2<'a> {
         }
         Ok(Self { x, y, z })
     }
+}
 
-    pub(crate) const fn from_static(x: &'a [f32], y: &'a [f32], z: &'a [f32]) -> Self {
+impl<'a, R: Real> Table2<'a, R> {
+    pub(crate) const fn from_static(x: &'a [R], y: &'a [R], z: &'a [R]) -> Self {
         Self { x, y, z }
     }
 
     /// Column grid (throttle set point).
-    pub fn x(&self) -> &'a [f32] {
+    pub fn x(&self) -> &'a [R] {
         self.x
     }
 
     /// Row grid (load set point).
-    pub fn y(&self) -> &'a [f32] {
+    pub fn y(&self) -> &'a [R] {
         self.y
     }
 
     /// Values, row-major.
-    pub fn z(&self) -> &'a [f32] {
+    pub fn z(&self) -> &'a [R] {
         self.z
     }
 
     /// Bilinear interpolation; edges clamp.
     #[inline]
-    pub fn eval(&self, qx: f32, qy: f32) -> f32 {
+    pub fn eval(&self, qx: R, qy: R) -> R {
         self.eval_loc(locate(self.x, qx), locate(self.y, qy))
     }
 
     /// True when `other` has exactly the same grids (so locations can be shared).
-    pub fn same_grid(&self, other: &Table2<'_>) -> bool {
+    pub fn same_grid(&self, other: &Table2<'_, R>) -> bool {
         self.x == other.x && self.y == other.y
     }
 
     /// Bilinear interpolation at locations found with [`locate`] on this table's grids.
     #[inline]
-    pub fn eval_loc(&self, (ix, tx): Loc, (iy, ty): Loc) -> f32 {
+    pub fn eval_loc(&self, (ix, tx): Loc<R>, (iy, ty): Loc<R>) -> R {
         let nx = self.x.len();
-        let at = |r: usize, c: usize| self.z.get(r * nx + c).copied().unwrap_or(0.0);
+        let at = |r: usize, c: usize| self.z.get(r * nx + c).copied().unwrap_or(R::ZERO);
         let z00 = at(iy, ix);
         let z01 = at(iy, ix + 1);
         let z10 = at(iy + 1, ix);

@@ -2,43 +2,46 @@
 //! target speed.
 
 use crate::data::Maps;
+use crate::num::{clamp, Real};
 use crate::params::{Params, SpeedTarget};
 
 /// Throttle voltage at the controller [V] from the signed set point [%]: `|sp| / 20`,
 /// within 0..5 V. The sign is the direction switch, not part of the voltage.
 #[inline]
-pub fn voltage(p: &Params, setpoint_pct: f32) -> f32 {
-    let a = if setpoint_pct < 0.0 { -setpoint_pct } else { setpoint_pct };
-    (a * p.throttle_volts_per_pct).clamp(0.0, 5.0)
+pub fn voltage<R: Real>(p: &Params<R>, setpoint_pct: R) -> R {
+    let a = if setpoint_pct < R::ZERO { -setpoint_pct } else { setpoint_pct };
+    clamp(a * p.throttle_volts_per_pct, R::ZERO, R::lit(5.0))
 }
 
 /// Direction index of a signed quantity: 0 forward (>= 0), 1 reverse.
 #[inline]
-pub fn dir_index(v: f32) -> usize {
-    usize::from(v < 0.0)
+pub fn dir_index<R: Real>(v: R) -> usize {
+    usize::from(v < R::ZERO)
 }
 
 /// Signed target motor speed [rpm] for a mapped throttle [%] in the direction of
 /// `setpoint_pct`. `hint` speeds up the map lookup (see `table::locate_hinted`).
 #[inline]
-pub fn target_speed_rpm(
-    maps: &Maps<'_>,
-    p: &Params,
+pub fn target_speed_rpm<R: Real>(
+    maps: &Maps<'_, R>,
+    p: &Params<R>,
     mode: SpeedTarget,
-    mapped_pct: f32,
-    setpoint_pct: f32,
+    mapped_pct: R,
+    setpoint_pct: R,
     hint: &mut usize,
-) -> f32 {
+) -> R {
     let d = dir_index(setpoint_pct);
-    let limit = p.speed_limit_rpm.get(d).copied().unwrap_or(0.0);
+    let limit = p.speed_limit_rpm.get(d).copied().unwrap_or(R::ZERO);
     let mag = match mode {
         SpeedTarget::Map => {
             let t = if d == 0 { &maps.speed_fwd } else { &maps.speed_rev };
             t.eval_hinted(mapped_pct, hint)
         }
-        SpeedTarget::Parameter => mapped_pct * 0.01 * p.max_speed_rpm.get(d).copied().unwrap_or(0.0),
+        SpeedTarget::Parameter => {
+            mapped_pct * R::lit(0.01) * p.max_speed_rpm.get(d).copied().unwrap_or(R::ZERO)
+        }
     };
-    let mag = crate::num::clamp(mag, 0.0, limit);
+    let mag = clamp(mag, R::ZERO, limit);
     if d == 0 {
         mag
     } else {

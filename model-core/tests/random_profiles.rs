@@ -1,5 +1,7 @@
 //! Property test: random valid profiles over the whole set-point range, 60 s simulated,
-//! never produce NaN/inf and never leave physical bounds, at 1 ms and at 100 µs.
+//! never produce NaN/inf and never leave physical bounds, at 1 ms and at 100 µs; the
+//! fixed-point twin (`Fx`) on the same profiles too, where additionally not a single
+//! operation may saturate (every signal stays inside its format's range).
 
 use model_core::*;
 use proptest::prelude::*;
@@ -21,7 +23,7 @@ fn set() -> impl Strategy<Value = ProfileSet> {
     )
 }
 
-fn scenario() -> impl Strategy<Value = (Vec<ProfileSet>, f32, f32, f32, bool, bool)> {
+fn scenario() -> impl Strategy<Value = Scenario> {
     (
         prop::collection::vec(set(), 1..=profile::MAX_SETS),
         -1.5f32..=1.5,
@@ -69,7 +71,9 @@ fn check(o: &Outputs, supply_v: f32, p: &Params) -> Result<(), String> {
     Ok(())
 }
 
-fn run_60s(dt_us: u32, sc: &(Vec<ProfileSet>, f32, f32, f32, bool, bool)) -> Result<(), TestCaseError> {
+type Scenario = (Vec<ProfileSet>, f32, f32, f32, bool, bool);
+
+fn run_60s(dt_us: u32, sc: &Scenario, fixed: bool) -> Result<(), TestCaseError> {
     let (sets, ts, ls, supply_v, programmed, parameter) = sc;
     let params = Params::thesis(
         if *programmed { RateSet::Programmed } else { RateSet::Identified },
@@ -78,12 +82,23 @@ fn run_60s(dt_us: u32, sc: &(Vec<ProfileSet>, f32, f32, f32, bool, bool)) -> Res
     let speed_target = if *parameter { SpeedTarget::Parameter } else { SpeedTarget::Map };
     let cfg = Config { dt_us, params, speed_target, effects: Effects::NONE };
     let profile = Profile::new(sets, *ts, *ls).expect("generated profiles are valid");
-    let mut model = Model::new(&cfg).expect("valid config");
     let steps = 60_000_000 / u64::from(dt_us);
-    for _ in 0..steps {
-        let inp = Inputs { sp: profile.at(model.t_us()), supply_v: *supply_v };
-        let o = model.step(&inp);
-        check(&o, *supply_v, &params).map_err(TestCaseError::fail)?;
+    if fixed {
+        let mut model = Model::new_fx(&cfg).expect("valid config");
+        for _ in 0..steps {
+            let inp = Inputs { sp: profile.at(model.t_us()), supply_v: *supply_v };
+            let o = model.step(&inp).to_f32();
+            check(&o, *supply_v, &params).map_err(TestCaseError::fail)?;
+        }
+        // Counted over the whole test binary: any saturation so far fails.
+        prop_assert_eq!(saturations(), 0, "fixed-point operations saturated");
+    } else {
+        let mut model = Model::new(&cfg).expect("valid config");
+        for _ in 0..steps {
+            let inp = Inputs { sp: profile.at(model.t_us()), supply_v: *supply_v };
+            let o = model.step(&inp);
+            check(&o, *supply_v, &params).map_err(TestCaseError::fail)?;
+        }
     }
     Ok(())
 }
@@ -92,7 +107,7 @@ proptest! {
     #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
     #[test]
     fn random_profiles_stay_physical_at_1ms(sc in scenario()) {
-        run_60s(1000, &sc)?;
+        run_60s(1000, &sc, false)?;
     }
 }
 
@@ -100,6 +115,22 @@ proptest! {
     #![proptest_config(ProptestConfig { cases: 6, ..ProptestConfig::default() })]
     #[test]
     fn random_profiles_stay_physical_at_100us(sc in scenario()) {
-        run_60s(100, &sc)?;
+        run_60s(100, &sc, false)?;
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+    #[test]
+    fn random_profiles_stay_physical_and_in_range_fixed_point_at_1ms(sc in scenario()) {
+        run_60s(1000, &sc, true)?;
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 6, ..ProptestConfig::default() })]
+    #[test]
+    fn random_profiles_stay_physical_and_in_range_fixed_point_at_100us(sc in scenario()) {
+        run_60s(100, &sc, true)?;
     }
 }

@@ -194,6 +194,82 @@ fn host_insns() -> Option<f64> {
     Some((b - a) / 100_000.0)
 }
 
+/// The FPU-less Cortex-M3 (issue 15), measured as the M4F: instructions per step of the
+/// fixed-point twin and of the f32 twin in soft-float on the same core (the same cost
+/// binary, every run's outputs checked against the host's bits), where the fixed-point
+/// step goes (block profile), and the fixed-point bench firmware's flash.
+fn cortex_m3(out: &mut String, report: &mut serde_json::Map<String, Value>) -> Result<(), String> {
+    stage("Cortex-M3: fixed-point and soft-float builds, cost runs");
+    writeln!(
+        out,
+        "\n== Cortex-M3 without an FPU (QEMU mps2-an385, -icount shift={}): instructions per simrod_step",
+        rt::COST_SHIFT
+    )
+    .ok();
+    writeln!(
+        out,
+        "{:<28} {:<8} {:>7} | {:>30} {:>9}",
+        "build", "profile", "steps", "min / median / p99 / max", "mean"
+    )
+    .ok();
+    let mut json_rows = Vec::new();
+    let mut means = Vec::new();
+    for (mcu, variant) in [(rt::M3_FIXED, "bench-rt-m3-fixed"), (rt::M3_SOFT, "bench-rt-m3-soft")] {
+        let dir = rt::build_firmware_on(&mcu, variant, None, &[])?;
+        let cost = rt::run_cost_on(&mcu, &dir.join("simrod-cost"), &dir.join("cost-run"))?;
+        let mut rows: Vec<(String, Vec<&rt::StepCost>)> =
+            cost.runs.iter().map(|r| (r.profile.name().to_string(), r.steps.iter().collect())).collect();
+        rows.push(("all".into(), cost.runs.iter().flat_map(|r| &r.steps).collect()));
+        for (name, steps) in &rows {
+            let s = Summary::of(steps.iter().map(|s| s.step)).ok_or("no steps")?;
+            writeln!(
+                out,
+                "{:<28} {name:<8} {:>7} | {:>6} {:>7} {:>7} {:>7} {:>9.0}",
+                mcu.name, s.n, s.min, s.median, s.p99, s.max, s.mean
+            )
+            .ok();
+            json_rows.push(json!({"build": mcu.name, "profile": name, "step": summary_json(&s)}));
+            if name == "all" {
+                means.push(s.mean);
+            }
+        }
+        if mcu.fixed {
+            let fp = rt::footprint(&dir.join("firmware"))?;
+            writeln!(
+                out,
+                "fixed-point bench firmware: flash {} B = vector table {} + .text {} + .rodata {} + .data {}; static RAM {} B",
+                fp.flash(),
+                fp.vector_table,
+                fp.text,
+                fp.rodata,
+                fp.data,
+                fp.static_ram()
+            )
+            .ok();
+        }
+    }
+    let ratio = means.get(1).zip(means.first()).map(|(soft, fixed)| soft / fixed);
+    if let Some(r) = ratio {
+        writeln!(out, "soft-float / fixed point, mean step: {r:.2} (aim >= 3)").ok();
+    }
+    stage("Cortex-M3: fixed-point block profile");
+    let prof = rt::build_firmware_on(&rt::M3_FIXED, "bench-rt-m3-profile", None, &["profile"])?;
+    let hooked = rt::run_cost_on(&rt::M3_FIXED, &prof.join("simrod-cost"), &prof.join("cost-run"))?;
+    let blocks = hooked.block_shares();
+    writeln!(out, "where the fixed-point step goes (hook overhead removed):").ok();
+    let mut sorted = blocks.clone();
+    sorted.sort_by(|a, b| b.1.total_cmp(&a.1));
+    for (n, v, share) in &sorted {
+        writeln!(out, "  {n:<28} {v:>8.0} {:>7.1}%", 100.0 * share).ok();
+    }
+    report.insert(
+        "cortex_m3".into(),
+        json!({"machine": "mps2-an385", "runs": json_rows, "soft_over_fixed_mean": ratio,
+               "fixed_blocks": sorted.iter().map(|(n, v, s)| json!({"block": n, "insns_per_step": v, "share": s})).collect::<Vec<_>>()}),
+    );
+    Ok(())
+}
+
 fn bench_rt(args: &[String]) -> Result<(), String> {
     let opts = parse(args)?;
     let t_start = Instant::now();
@@ -436,6 +512,11 @@ fn bench_rt(args: &[String]) -> Result<(), String> {
                "max_clean_rate_hz": rate(sw.clean_tick_us), "max_clean_rate_tick_us": sw.clean_tick_us,
                "clean": "no overrun, no missed tick, no step starting later than 10 % of the period"}),
     );
+
+    // 5b. The FPU-less Cortex-M3.
+    if !opts.quick {
+        cortex_m3(&mut out, &mut report)?;
+    }
 
     // 6. Budgets and aims.
     writeln!(out, "\n== Budgets (CI guard, tests/firmware_budget.rs) and aims").ok();

@@ -26,7 +26,7 @@ use firmware::icount::{between, counts, stamp};
 use firmware::nop_region;
 use firmware::protocol::{self, Fnv1a64};
 use firmware::step::{simrod_profile_at, simrod_step};
-use model_core::{Builtin, Inputs, Model, Outputs, Profile, RateSet};
+use model_core::{Builtin, Inputs, Outputs, Profile, RateSet};
 
 /// The profiles measured.
 const PROFILES: [Builtin; 3] = [Builtin::TP07, Builtin::TP11, Builtin::TP14];
@@ -37,7 +37,7 @@ const RECORD_WORDS: usize = protocol::COST_FIXED_WORDS + 2 * N_BLOCKS;
 /// Steps buffered per semihosting write.
 const BATCH: usize = 128;
 /// Bytes painted below the stack pointer before each step.
-const STACK_WINDOW: usize = 2048;
+const STACK_WINDOW: usize = 4096;
 const STACK_PAINT: u32 = 0x5354_4b21;
 type Out = HostOut<{ 4 * RECORD_WORDS * BATCH }>;
 
@@ -137,7 +137,7 @@ fn put_u32(out: &mut Out, v: u32) {
 
 fn run(out: &mut Out, which: Builtin, rates: RateSet) {
     let cfg = firmware::config(rates);
-    let mut model = match Model::new(&cfg) {
+    let mut model = match firmware::new_model(&cfg) {
         Ok(m) => m,
         Err(e) => defmt::panic!("model config rejected: {}", e),
     };
@@ -158,7 +158,7 @@ fn run(out: &mut Out, which: Builtin, rates: RateSet) {
     put_u32(out, n_steps);
 
     let mut hash = Fnv1a64::default();
-    let mut o = Outputs::default();
+    let mut o = Outputs::zero();
     let mut rec = [0u32; RECORD_WORDS];
     let (mut steps, mut worst) = (0u32, 0u32);
     while model.t_us() < profile.duration_us() {
@@ -183,7 +183,7 @@ fn run(out: &mut Out, which: Builtin, rates: RateSet) {
         for w in rec {
             put_u32(out, w);
         }
-        hash.write_f32s(&o.values);
+        firmware::hash_values(&mut hash, &o.values);
         steps += 1;
     }
     out.put(&protocol::END_MAGIC);

@@ -10,14 +10,15 @@ use cortex_m_rt::{entry, exception, ExceptionFrame};
 use firmware::hostio::{HostFile, HostOut};
 use firmware::protocol::{self, Fnv1a64};
 use firmware::step::{simrod_profile_at, simrod_step};
-use model_core::{Builtin, Inputs, Model, Outputs, Profile, RateSet, N_CHANNELS};
+use firmware::{Scalar, VALUE_BYTES};
+use model_core::{Builtin, Inputs, Outputs, Profile, RateSet, N_CHANNELS};
 
 /// Profiles traced: all built-in ones.
 const PROFILES: [Builtin; 5] = Builtin::ALL;
 /// Rate sets traced, in this order.
 const RATES: [RateSet; 2] = [RateSet::Programmed, RateSet::Identified];
 /// Bytes per step record.
-const RECORD: usize = 8 + 4 * N_CHANNELS;
+const RECORD: usize = 8 + VALUE_BYTES * N_CHANNELS;
 /// Steps buffered per semihosting write: each write is a trap to the host, so fewer,
 /// larger writes are what makes the trace fast.
 const BATCH: usize = 64;
@@ -29,13 +30,13 @@ type Out = HostOut<{ RECORD * BATCH }>;
 /// unchecked index, i.e. a panic path the check must find. Never part of the step.
 #[inline(never)]
 #[no_mangle]
-pub fn simrod_canary_index(values: &[f32; N_CHANNELS], i: usize) -> f32 {
+pub fn simrod_canary_index(values: &[Scalar; N_CHANNELS], i: usize) -> Scalar {
     values[i]
 }
 
 fn run(out: &mut Out, which: Builtin, rates: RateSet) -> u32 {
     let cfg = firmware::config(rates);
-    let mut model = match Model::new(&cfg) {
+    let mut model = match firmware::new_model(&cfg) {
         Ok(m) => m,
         Err(e) => defmt::panic!("model config rejected: {}", e),
     };
@@ -54,15 +55,15 @@ fn run(out: &mut Out, which: Builtin, rates: RateSet) -> u32 {
     out.put(&n_steps.to_le_bytes());
 
     let mut hash = Fnv1a64::default();
-    let mut o = Outputs::default();
+    let mut o = Outputs::zero();
     let mut rec = [0u8; RECORD];
     let mut steps = 0u32;
     while model.t_us() < profile.duration_us() {
         let inputs = Inputs { sp: simrod_profile_at(&profile, model.t_us()), supply_v: firmware::SUPPLY_V };
         simrod_step(&mut model, &inputs, &mut o);
         rec[..8].copy_from_slice(&o.t_us.to_le_bytes());
-        for (dst, v) in rec[8..].chunks_exact_mut(4).zip(o.values.iter()) {
-            dst.copy_from_slice(&v.to_bits().to_le_bytes());
+        for (dst, v) in rec[8..].chunks_exact_mut(VALUE_BYTES).zip(o.values.iter()) {
+            dst.copy_from_slice(&firmware::value_le(*v));
         }
         hash.write(&rec[8..]);
         out.put(&rec);
@@ -82,7 +83,7 @@ fn main() -> ! {
         defmt::panic!("cannot create {=str} on the host", protocol::TRACE_FILE);
     };
     let mut out = Out::new(file);
-    out.put(&protocol::TRACE_MAGIC);
+    out.put(&firmware::TRACE_MAGIC);
     out.put(&(N_CHANNELS as u16).to_le_bytes());
     out.put(&firmware::STEP_US.to_le_bytes());
     out.put(&(firmware::BUILD_EFFECTS.len() as u16).to_le_bytes());

@@ -19,6 +19,7 @@ use std::process::{Command, Stdio};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
+use model_core::Real as _;
 use model_core::{
     Builtin, Config, CouplingStiffness, Effects, Outputs, Params, Profile, RateSet, Simulation, SpeedTarget,
 };
@@ -30,7 +31,7 @@ pub mod protocol;
 pub const RATES: [RateSet; 2] = [RateSet::Programmed, RateSet::Identified];
 
 #[allow(unused_imports)] // each test binary uses a part
-pub use host_tests::rt::{firmware_target_dir, root, STEP_US, SUPPLY_V, TARGET};
+pub use host_tests::rt::{firmware_target_dir, root, Mcu, M3_FIXED, M3_SOFT, M4F, STEP_US, SUPPLY_V, TARGET};
 
 /// The binaries of the firmware crate.
 #[allow(unused_imports)] // each test binary uses a part
@@ -41,17 +42,23 @@ static BUILD: Mutex<()> = Mutex::new(());
 
 /// Fail, not skip, when a tool the proof needs is missing: a skipped proof looks green.
 pub fn require_tools() {
+    require_tools_on(&M4F);
+}
+
+/// [`require_tools`] for the target of `mcu`.
+pub fn require_tools_on(mcu: &Mcu) {
+    let target = mcu.target;
     let sysroot = Command::new("rustc")
         .args(["--print", "sysroot"])
         .current_dir(root())
         .output()
         .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
         .unwrap_or_default();
-    let target_lib = Path::new(&sysroot).join("lib/rustlib").join(TARGET);
+    let target_lib = Path::new(&sysroot).join("lib/rustlib").join(target);
     assert!(
         target_lib.is_dir(),
-        "the Rust target {TARGET} is not installed (no {}).\n\
-         Install it with: rustup target add {TARGET}",
+        "the Rust target {target} is not installed (no {}).\n\
+         Install it with: rustup target add {target}",
         target_lib.display()
     );
     match Command::new("qemu-system-arm").arg("--version").stdout(Stdio::null()).status() {
@@ -67,10 +74,15 @@ pub fn require_tools() {
 /// Build the firmware binaries (release) with the effects file `effects` compiled in
 /// (or none); the directory `target/firmware-tests/<variant>` holding their ELFs.
 pub fn build_firmware(variant: &str, effects: Option<&Path>) -> PathBuf {
-    require_tools();
+    build_firmware_on(&M4F, variant, effects)
+}
+
+/// [`build_firmware`] for the core `mcu`.
+pub fn build_firmware_on(mcu: &Mcu, variant: &str, effects: Option<&Path>) -> PathBuf {
+    require_tools_on(mcu);
     let _guard = BUILD.lock().unwrap_or_else(|e| e.into_inner());
     let t0 = Instant::now();
-    let dir = host_tests::rt::build_firmware(variant, effects, &[]).unwrap_or_else(|e| panic!("{e}"));
+    let dir = host_tests::rt::build_firmware_on(mcu, variant, effects, &[]).unwrap_or_else(|e| panic!("{e}"));
     eprintln!("firmware ({variant}) built in {:.1} s", t0.elapsed().as_secs_f64());
     dir
 }
@@ -95,6 +107,11 @@ pub struct Qemu {
 /// `extra` QEMU arguments and `args` on the semihosting command line. Without a
 /// `-serial` in `extra`, the UART is not connected.
 pub fn spawn_qemu(elf: &Path, cwd: &Path, extra: &[&str], args: &[&str]) -> Qemu {
+    spawn_qemu_on(&M4F, elf, cwd, extra, args)
+}
+
+/// [`spawn_qemu`] on the board of `mcu`.
+pub fn spawn_qemu_on(mcu: &Mcu, elf: &Path, cwd: &Path, extra: &[&str], args: &[&str]) -> Qemu {
     fs::create_dir_all(cwd).expect("create the run directory");
     let mut semi = String::from("enable=on,target=native,arg=firmware");
     for a in args {
@@ -102,7 +119,7 @@ pub fn spawn_qemu(elf: &Path, cwd: &Path, extra: &[&str], args: &[&str]) -> Qemu
         semi.push_str(a);
     }
     let mut cmd = Command::new("qemu-system-arm");
-    cmd.args(["-machine", "mps2-an386", "-cpu", "cortex-m4"])
+    cmd.args(["-machine", mcu.machine, "-cpu", mcu.cpu])
         .args(["-display", "none", "-monitor", "none"])
         .args(["-semihosting-config", &semi]);
     if !extra.contains(&"-serial") {
@@ -170,6 +187,11 @@ pub fn run_qemu(elf: &Path, cwd: &Path, timeout: Duration) -> QemuRun {
     spawn_qemu(elf, cwd, &[], &[]).wait(timeout)
 }
 
+/// [`run_qemu`] on the board of `mcu`.
+pub fn run_qemu_on(mcu: &Mcu, elf: &Path, cwd: &Path, timeout: Duration) -> QemuRun {
+    spawn_qemu_on(mcu, elf, cwd, &[], &[]).wait(timeout)
+}
+
 /// The host configuration the firmware runs (`firmware::config`).
 pub fn config(rates: RateSet, effects: Effects) -> Config {
     Config {
@@ -223,6 +245,8 @@ pub struct Trace {
     pub dt_us: u32,
     pub effects: Vec<(String, String, f32)>,
     pub runs: Vec<TraceRun>,
+    /// Bytes of a value: 4 (f32 bits), or 8 (the fixed-point twin's I32F32 bits).
+    pub width: usize,
 }
 
 /// Reads a little-endian record file front to back; a short file or a wrong magic
@@ -275,7 +299,11 @@ impl<'a> Cursor<'a> {
 pub fn read_trace(path: &Path) -> Trace {
     let bytes = fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let mut c = Cursor::new(&bytes, "trace");
-    c.magic(&protocol::TRACE_MAGIC, "the trace magic");
+    let width = match bytes.get(..8) {
+        Some(m) if m == protocol::TRACE_MAGIC_FX => 8,
+        _ => 4,
+    };
+    c.magic(if width == 8 { &protocol::TRACE_MAGIC_FX } else { &protocol::TRACE_MAGIC }, "the trace magic");
     let n_channels = usize::from(c.u16());
     let dt_us = c.u32();
     let n_fx = c.u16();
@@ -286,7 +314,7 @@ pub fn read_trace(path: &Path) -> Trace {
             (id, key, f32::from_bits(c.u32()))
         })
         .collect();
-    let record = 8 + 4 * n_channels;
+    let record = 8 + width * n_channels;
     let mut runs = Vec::new();
     loop {
         let at = c.pos;
@@ -314,15 +342,23 @@ pub fn read_trace(path: &Path) -> Trace {
         let hash = c.u64();
         runs.push(TraceRun { profile, rates, n_steps, records, hash });
     }
-    Trace { n_channels, dt_us, effects, runs, bytes }
+    Trace { n_channels, dt_us, effects, runs, bytes, width }
 }
 
-/// Step `k` of a run: `t_us` and the channel bits.
-pub fn record(trace: &Trace, run: &TraceRun, k: usize) -> (u64, Vec<u32>) {
-    let size = 8 + 4 * trace.n_channels;
+/// Step `k` of a run: `t_us` and the channel bits (4 or 8 bytes each, as a u64).
+pub fn record(trace: &Trace, run: &TraceRun, k: usize) -> (u64, Vec<u64>) {
+    let w = trace.width;
+    let size = 8 + w * trace.n_channels;
     let r = &trace.bytes[run.records.start + k * size..][..size];
     let t = u64::from_le_bytes(r[..8].try_into().unwrap());
-    let bits = r[8..].chunks_exact(4).map(|b| u32::from_le_bytes(b.try_into().unwrap())).collect();
+    let bits = r[8..]
+        .chunks_exact(w)
+        .map(|b| {
+            let mut v = [0u8; 8];
+            v[..w].copy_from_slice(b);
+            u64::from_le_bytes(v)
+        })
+        .collect();
     (t, bits)
 }
 
@@ -342,21 +378,83 @@ pub fn compare_run(trace: &Trace, run: &TraceRun, effects: Effects) -> usize {
     for (k, o) in host.iter().enumerate() {
         let (t_us, bits) = record(trace, run, k);
         assert_eq!(t_us, o.t_us, "{label}: step {k}: firmware t_us {t_us}, host {}", o.t_us);
+        assert_eq!(trace.width, 4, "{label}: not an f32 trace");
         for (c, (fw, hv)) in bits.iter().zip(o.values.iter()).enumerate() {
-            if *fw != hv.to_bits() {
+            if *fw != u64::from(hv.to_bits()) {
                 let ch = model_core::Channel::ALL[c];
                 panic!(
                     "{label}: first difference at step {k} (t = {t_us} us), channel {} ({}):\n  \
                      firmware {:e} (0x{fw:08x})\n  host     {:e} (0x{:08x})",
                     ch.name(),
                     ch.unit(),
-                    f32::from_bits(*fw),
+                    f32::from_bits(*fw as u32),
                     hv,
                     hv.to_bits()
                 );
             }
         }
         h.write_f32s(&o.values);
+    }
+    assert_eq!(
+        run.hash, h.0,
+        "{label}: the firmware's own hash differs from the host's though every record matched"
+    );
+    host.len()
+}
+
+/// The host run of the fixed-point twin for one traced run (the M3 build's twin).
+pub fn host_sim_fx(which: Builtin, rates: RateSet) -> Simulation<'static, model_core::Fx> {
+    let profile = Profile::builtin(which, 1.0, 1.0).expect("built-in profile");
+    Simulation::new_fx(&config(rates, Effects::NONE), profile, SUPPLY_V).expect("valid config")
+}
+
+/// FNV-1a 64 over the little-endian I32F32 bits of every channel of every step of the
+/// host's fixed-point run; the step count.
+pub fn host_hash_fx(which: Builtin, rates: RateSet) -> (u64, u32) {
+    let mut h = protocol::Fnv1a64::default();
+    let mut steps = 0;
+    for o in host_sim_fx(which, rates) {
+        for v in o.values {
+            h.write(&v.to_bits().to_le_bytes());
+        }
+        steps += 1;
+    }
+    (h.0, steps)
+}
+
+/// [`compare_run`] for a fixed-point trace: every channel's I32F32 bits at every step
+/// equal the host's fixed-point twin's. The number of steps compared.
+pub fn compare_run_fx(trace: &Trace, run: &TraceRun) -> usize {
+    let label = format!("{} {} (fixed point)", run.profile.name(), rates_name(run.rates));
+    assert_eq!(trace.width, 8, "{label}: not a fixed-point trace");
+    let host: Vec<Outputs<model_core::Fx>> = host_sim_fx(run.profile, run.rates).collect();
+    assert_eq!(
+        run.n_steps as usize,
+        host.len(),
+        "{label}: firmware ran {} steps, host {}",
+        run.n_steps,
+        host.len()
+    );
+    let mut h = protocol::Fnv1a64::default();
+    for (k, o) in host.iter().enumerate() {
+        let (t_us, bits) = record(trace, run, k);
+        assert_eq!(t_us, o.t_us, "{label}: step {k}: firmware t_us {t_us}, host {}", o.t_us);
+        for (c, (fw, hv)) in bits.iter().zip(o.values.iter()).enumerate() {
+            if *fw as i64 != hv.to_bits() {
+                let ch = model_core::Channel::ALL[c];
+                panic!(
+                    "{label}: first difference at step {k} (t = {t_us} us), channel {} ({}):\n  \
+                     firmware {} (0x{fw:016x})\n  host     {hv:?} (0x{:016x})",
+                    ch.name(),
+                    ch.unit(),
+                    model_core::Fx::from_bits(*fw as i64).to_f32(),
+                    hv.to_bits()
+                );
+            }
+        }
+        for v in o.values {
+            h.write(&v.to_bits().to_le_bytes());
+        }
     }
     assert_eq!(
         run.hash, h.0,
