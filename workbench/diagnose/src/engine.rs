@@ -391,22 +391,29 @@ fn stages(
 fn tables(twin: &dyn Twin, ev: &Evidence, v: Verdict) -> (Verdict, Option<Empirical>) {
     let fit =
         |fx: Effects| correct(&EmpiricalInputs { twin, p: ev.p, o: ev.o, fx, channels: twin.channels() });
+    let (p, o) = (ev.p, ev.o);
+    // Each fit costs a simulation per map node: only where it can change the answer. A
+    // table cannot beat a proposal that leaves less than the margin, and what leaves a
+    // noise-like whole (local structure only) has no energy for a table to remove.
+    let left_after = (p.e0 - v.removed * p.excess) / p.e_noise;
+    let can_beat = v.removed + PREFER_TABLE_MARGIN <= 1.0;
     match v.kind {
-        VerdictKind::Unexplained => {
-            let e = fit(ev.o.base);
+        VerdictKind::Unexplained if p.excess_ratio > o.noise_like_ratio => {
+            let e = fit(o.base);
             (v, e)
         }
         VerdictKind::Partial => {
-            let alone = fit(ev.o.base);
+            let alone = if can_beat { fit(o.base) } else { None };
             match alone {
                 // The table's worse figure, held-out (linear) or confirmed (simulator).
                 Some(e) if e.refused.is_none() && e.removes() >= v.removed + PREFER_TABLE_MARGIN => {
                     (table_beats_library(ev, &v, e.removes()), Some(e))
                 }
-                _ => {
+                _ if left_after > o.noise_like_ratio => {
                     let e = fit(v.proposed);
                     (v, e)
                 }
+                _ => (v, None),
             }
         }
         _ => (v, None),
