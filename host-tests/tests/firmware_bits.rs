@@ -129,52 +129,5 @@ const GOLDEN_HEADER: &str = "\
 
 #[test]
 fn host_traces_match_golden_hashes() {
-    let mut now = String::from(GOLDEN_HEADER);
-    for rates in fw::RATES {
-        for which in Builtin::ALL {
-            let (hash, steps) = fw::host_hash(which, rates);
-            writeln!(
-                now,
-                "{} {} steps={steps} channels={N_CHANNELS} fnv1a64={hash:#018x}",
-                which.name(),
-                fw::rates_name(rates)
-            )
-            .ok();
-        }
-    }
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(GOLDEN);
-    if std::env::var_os("SIMROD_BLESS").is_some_and(|v| v == "1") {
-        fs::create_dir_all(path.parent().unwrap()).unwrap();
-        fs::write(&path, &now).unwrap();
-        eprintln!("blessed {}", path.display());
-        return;
-    }
-    let golden = fs::read_to_string(&path).unwrap_or_else(|e| {
-        panic!(
-            "{}: {e}. Create it with SIMROD_BLESS=1 cargo test -p host-tests --test \
-             firmware_bits golden",
-            path.display()
-        )
-    });
-    let data = |s: &str| -> Vec<String> {
-        s.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()).map(str::to_string).collect()
-    };
-    let (want, got) = (data(&golden), data(&now));
-    let diffs: Vec<String> = want
-        .iter()
-        .zip(&got)
-        .filter(|(w, g)| w != g)
-        .map(|(w, g)| format!("  golden: {w}\n  now:    {g}"))
-        .collect();
-    assert!(
-        diffs.is_empty() && want.len() == got.len(),
-        "the host traces no longer match {}:\n{}\n(golden has {} runs, now {}).\n\
-         If the model change is deliberate, regenerate with\n  \
-         SIMROD_BLESS=1 cargo test -p host-tests --test firmware_bits golden\n\
-         and commit the file with the change; otherwise find what changed the numbers.",
-        path.display(),
-        diffs.join("\n"),
-        want.len(),
-        got.len()
-    );
+    fw::check_golden(GOLDEN, GOLDEN_HEADER, "firmware_bits", fw::host_hash);
 }

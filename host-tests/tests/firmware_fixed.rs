@@ -14,9 +14,7 @@
 
 mod firmware_support;
 
-use std::fmt::Write as _;
 use std::fs;
-use std::path::Path;
 use std::time::{Duration, Instant};
 
 use firmware_support as fw;
@@ -75,40 +73,5 @@ const GOLDEN_HEADER: &str = "\
 
 #[test]
 fn fixed_point_host_traces_match_golden_hashes() {
-    let mut now = String::from(GOLDEN_HEADER);
-    for rates in fw::RATES {
-        for which in Builtin::ALL {
-            let (hash, steps) = fw::host_hash_fx(which, rates);
-            writeln!(
-                now,
-                "{} {} steps={steps} channels={N_CHANNELS} fnv1a64={hash:#018x}",
-                which.name(),
-                fw::rates_name(rates)
-            )
-            .ok();
-        }
-    }
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(GOLDEN);
-    if std::env::var_os("SIMROD_BLESS").is_some_and(|v| v == "1") {
-        fs::write(&path, &now).unwrap();
-        eprintln!("blessed {}", path.display());
-        return;
-    }
-    let golden = fs::read_to_string(&path).unwrap_or_else(|e| {
-        panic!(
-            "{}: {e}. Create it with SIMROD_BLESS=1 cargo test -p host-tests --test firmware_fixed golden",
-            path.display()
-        )
-    });
-    let data = |s: &str| -> Vec<String> {
-        s.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()).map(str::to_string).collect()
-    };
-    let (want, got) = (data(&golden), data(&now));
-    assert_eq!(
-        want,
-        got,
-        "the host's fixed-point traces no longer match {}. If the change is deliberate, \
-         regenerate with SIMROD_BLESS=1 cargo test -p host-tests --test firmware_fixed golden",
-        path.display()
-    );
+    fw::check_golden(GOLDEN, GOLDEN_HEADER, "firmware_fixed", fw::host_hash_fx);
 }

@@ -237,15 +237,13 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
     let mut model = args.model.load()?;
     model.sensors = args.sensors.model();
     let base = model.effects;
+    let inputs =
+        args.model.inputs().files("a measurement", &args.meas).file("--mapping", args.mapping.as_deref());
     if let Some(out) = &args.write_effects {
-        let inputs =
-            args.model.inputs().files("a measurement", &args.meas).file("--mapping", args.mapping.as_deref());
         inputs.check("--write-effects", out).map_err(CmdError::Usage)?;
         check_out_path(out)?;
     }
     if let Some(dir) = &args.write_data {
-        let inputs =
-            args.model.inputs().files("a measurement", &args.meas).file("--mapping", args.mapping.as_deref());
         inputs.check_dir("--write-data", dir).map_err(CmdError::Usage)?;
         if dir.is_file() {
             return Err(CmdError::Usage(format!(

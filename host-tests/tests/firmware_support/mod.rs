@@ -210,13 +210,7 @@ pub fn host_sim(which: Builtin, rates: RateSet, effects: Effects) -> Simulation<
 
 /// FNV-1a 64 over the little-endian bits of every channel of every step.
 pub fn host_hash(which: Builtin, rates: RateSet) -> (u64, u32) {
-    let mut h = protocol::Fnv1a64::default();
-    let mut steps = 0;
-    for o in host_sim(which, rates, Effects::NONE) {
-        h.write_f32s(&o.values);
-        steps += 1;
-    }
-    (h.0, steps)
+    hash_steps(host_sim(which, rates, Effects::NONE))
 }
 
 /// Lower-case name of a rate set, as in the golden file and messages.
@@ -362,11 +356,55 @@ pub fn record(trace: &Trace, run: &TraceRun, k: usize) -> (u64, Vec<u64>) {
     (t, bits)
 }
 
-/// Compare one run bit for bit with the host; the number of steps compared. Panics
-/// at the first difference with step, time, channel and both values.
-pub fn compare_run(trace: &Trace, run: &TraceRun, effects: Effects) -> usize {
-    let label = format!("{} {}", run.profile.name(), rates_name(run.rates));
-    let host: Vec<Outputs> = host_sim(run.profile, run.rates, effects).collect();
+/// A twin's channel value as a trace carries it: f32 (M4F, M3 soft-float) or the
+/// fixed-point `Fx` (M3 fixed), so one comparison and one hash serve both.
+pub trait TraceValue: Copy {
+    /// Bytes per value in a trace.
+    const WIDTH: usize;
+    /// The value's bits as the trace stores them (little-endian, zero-extended).
+    fn raw(self) -> u64;
+    /// Bits as read from a trace, for a message: the value and its hex.
+    fn show(raw: u64) -> String;
+}
+
+impl TraceValue for f32 {
+    const WIDTH: usize = 4;
+    fn raw(self) -> u64 {
+        u64::from(self.to_bits())
+    }
+    fn show(raw: u64) -> String {
+        format!("{:e} (0x{raw:08x})", f32::from_bits(raw as u32))
+    }
+}
+
+impl TraceValue for model_core::Fx {
+    const WIDTH: usize = 8;
+    fn raw(self) -> u64 {
+        self.to_bits() as u64
+    }
+    fn show(raw: u64) -> String {
+        format!("{} (0x{raw:016x})", model_core::Fx::from_bits(raw as i64).to_f32())
+    }
+}
+
+/// FNV-1a 64 over the little-endian bits of every channel of every step (the firmware's
+/// own hash), and the step count.
+fn hash_steps<R: TraceValue>(outputs: impl IntoIterator<Item = Outputs<R>>) -> (u64, u32) {
+    let mut h = protocol::Fnv1a64::default();
+    let mut steps = 0;
+    for o in outputs {
+        for v in o.values {
+            h.write(&v.raw().to_le_bytes()[..R::WIDTH]);
+        }
+        steps += 1;
+    }
+    (h.0, steps)
+}
+
+/// Compare one run bit for bit with the host's `host` outputs; the number of steps
+/// compared. Panics at the first difference with step, time, channel and both values.
+fn compare_outputs<R: TraceValue>(trace: &Trace, run: &TraceRun, label: &str, host: &[Outputs<R>]) -> usize {
+    assert_eq!(trace.width, R::WIDTH, "{label}: a trace of {}-byte values", trace.width);
     assert_eq!(
         run.n_steps as usize,
         host.len(),
@@ -374,32 +412,36 @@ pub fn compare_run(trace: &Trace, run: &TraceRun, effects: Effects) -> usize {
         run.n_steps,
         host.len()
     );
-    let mut h = protocol::Fnv1a64::default();
     for (k, o) in host.iter().enumerate() {
         let (t_us, bits) = record(trace, run, k);
         assert_eq!(t_us, o.t_us, "{label}: step {k}: firmware t_us {t_us}, host {}", o.t_us);
-        assert_eq!(trace.width, 4, "{label}: not an f32 trace");
         for (c, (fw, hv)) in bits.iter().zip(o.values.iter()).enumerate() {
-            if *fw != u64::from(hv.to_bits()) {
+            if *fw != hv.raw() {
                 let ch = model_core::Channel::ALL[c];
                 panic!(
                     "{label}: first difference at step {k} (t = {t_us} us), channel {} ({}):\n  \
-                     firmware {:e} (0x{fw:08x})\n  host     {:e} (0x{:08x})",
+                     firmware {}\n  host     {}",
                     ch.name(),
                     ch.unit(),
-                    f32::from_bits(*fw as u32),
-                    hv,
-                    hv.to_bits()
+                    R::show(*fw),
+                    R::show(hv.raw())
                 );
             }
         }
-        h.write_f32s(&o.values);
     }
     assert_eq!(
-        run.hash, h.0,
+        run.hash,
+        hash_steps(host.iter().cloned()).0,
         "{label}: the firmware's own hash differs from the host's though every record matched"
     );
     host.len()
+}
+
+/// Compare one f32 run bit for bit with the host; the number of steps compared.
+pub fn compare_run(trace: &Trace, run: &TraceRun, effects: Effects) -> usize {
+    let label = format!("{} {}", run.profile.name(), rates_name(run.rates));
+    let host: Vec<Outputs> = host_sim(run.profile, run.rates, effects).collect();
+    compare_outputs(trace, run, &label, &host)
 }
 
 /// The host run of the fixed-point twin for one traced run (the M3 build's twin).
@@ -411,54 +453,64 @@ pub fn host_sim_fx(which: Builtin, rates: RateSet) -> Simulation<'static, model_
 /// FNV-1a 64 over the little-endian I32F32 bits of every channel of every step of the
 /// host's fixed-point run; the step count.
 pub fn host_hash_fx(which: Builtin, rates: RateSet) -> (u64, u32) {
-    let mut h = protocol::Fnv1a64::default();
-    let mut steps = 0;
-    for o in host_sim_fx(which, rates) {
-        for v in o.values {
-            h.write(&v.to_bits().to_le_bytes());
-        }
-        steps += 1;
-    }
-    (h.0, steps)
+    hash_steps(host_sim_fx(which, rates))
 }
 
 /// [`compare_run`] for a fixed-point trace: every channel's I32F32 bits at every step
 /// equal the host's fixed-point twin's. The number of steps compared.
 pub fn compare_run_fx(trace: &Trace, run: &TraceRun) -> usize {
     let label = format!("{} {} (fixed point)", run.profile.name(), rates_name(run.rates));
-    assert_eq!(trace.width, 8, "{label}: not a fixed-point trace");
     let host: Vec<Outputs<model_core::Fx>> = host_sim_fx(run.profile, run.rates).collect();
-    assert_eq!(
-        run.n_steps as usize,
-        host.len(),
-        "{label}: firmware ran {} steps, host {}",
-        run.n_steps,
-        host.len()
-    );
-    let mut h = protocol::Fnv1a64::default();
-    for (k, o) in host.iter().enumerate() {
-        let (t_us, bits) = record(trace, run, k);
-        assert_eq!(t_us, o.t_us, "{label}: step {k}: firmware t_us {t_us}, host {}", o.t_us);
-        for (c, (fw, hv)) in bits.iter().zip(o.values.iter()).enumerate() {
-            if *fw as i64 != hv.to_bits() {
-                let ch = model_core::Channel::ALL[c];
-                panic!(
-                    "{label}: first difference at step {k} (t = {t_us} us), channel {} ({}):\n  \
-                     firmware {} (0x{fw:016x})\n  host     {hv:?} (0x{:016x})",
-                    ch.name(),
-                    ch.unit(),
-                    model_core::Fx::from_bits(*fw as i64).to_f32(),
-                    hv.to_bits()
-                );
-            }
-        }
-        for v in o.values {
-            h.write(&v.to_bits().to_le_bytes());
+    compare_outputs(trace, run, &label, &host)
+}
+
+/// Check the host's trace hashes (`hash` per built-in profile and rate set) against the
+/// golden file `file` (under host-tests/, with `header` on top); `SIMROD_BLESS=1`
+/// rewrites it instead. `test` is the command that blesses, for the messages.
+pub fn check_golden(file: &str, header: &str, test: &str, hash: impl Fn(Builtin, RateSet) -> (u64, u32)) {
+    use std::fmt::Write as _;
+    let mut now = String::from(header);
+    for rates in RATES {
+        for which in Builtin::ALL {
+            let (h, steps) = hash(which, rates);
+            writeln!(
+                now,
+                "{} {} steps={steps} channels={} fnv1a64={h:#018x}",
+                which.name(),
+                rates_name(rates),
+                model_core::N_CHANNELS
+            )
+            .ok();
         }
     }
-    assert_eq!(
-        run.hash, h.0,
-        "{label}: the firmware's own hash differs from the host's though every record matched"
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(file);
+    let bless = format!("SIMROD_BLESS=1 cargo test -p host-tests --test {test} golden");
+    if std::env::var_os("SIMROD_BLESS").is_some_and(|v| v == "1") {
+        fs::create_dir_all(path.parent().expect("golden files live in a directory")).expect("golden dir");
+        fs::write(&path, &now).expect("write the golden file");
+        eprintln!("blessed {}", path.display());
+        return;
+    }
+    let golden = fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("{}: {e}. Create it with {bless}", path.display()));
+    let data = |s: &str| -> Vec<String> {
+        s.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()).map(str::to_string).collect()
+    };
+    let (want, got) = (data(&golden), data(&now));
+    let diffs: Vec<String> = want
+        .iter()
+        .zip(&got)
+        .filter(|(w, g)| w != g)
+        .map(|(w, g)| format!("  golden: {w}\n  now:    {g}"))
+        .collect();
+    assert!(
+        diffs.is_empty() && want.len() == got.len(),
+        "the host traces no longer match {}:\n{}\n(golden has {} runs, now {}).\n\
+         If the model change is deliberate, regenerate with\n  {bless}\n\
+         and commit the file with the change; otherwise find what changed the numbers.",
+        path.display(),
+        diffs.join("\n"),
+        want.len(),
+        got.len()
     );
-    host.len()
 }

@@ -134,11 +134,11 @@ const MAPS: [(&str, Axis); 12] = [
 ];
 
 /// The values of map `file` in `d` (1-D: `y`; 2-D: `z`, row-major) and its grid sizes.
-fn values(d: &ModelData, file: &str) -> Option<(Vec<f32>, usize, usize)> {
+fn values<'a>(d: &'a ModelData, file: &str) -> Option<(&'a [f32], usize, usize)> {
     if let Some((_, m)) = d.maps_1d().into_iter().find(|(f, _)| *f == file) {
-        return Some((m.y.clone(), m.x.len(), 1));
+        return Some((&m.y, m.x.len(), 1));
     }
-    d.maps_2d().into_iter().find(|(f, _)| *f == file).map(|(_, m)| (m.z.clone(), m.x.len(), m.y.len()))
+    d.maps_2d().into_iter().find(|(f, _)| *f == file).map(|(_, m)| (m.z.as_slice(), m.x.len(), m.y.len()))
 }
 
 /// Mutable values and comments of map `file` in `d`.
@@ -166,16 +166,20 @@ fn values_mut<'a>(d: &'a mut ModelData, file: &str) -> Option<(&'a mut Vec<f32>,
     })
 }
 
-/// Grid axes of map `file` (`x`, and `y` for a 2-D map) and its header's quantity.
-fn grid(d: &ModelData, file: &str) -> Option<(Vec<f32>, Vec<f32>, String)> {
+/// Grid axes of map `file` (`x`, and `y` for a 2-D map, else empty).
+fn grid<'a>(d: &'a ModelData, file: &str) -> Option<(&'a [f32], &'a [f32])> {
     if let Some((_, m)) = d.maps_1d().into_iter().find(|(f, _)| *f == file) {
-        let q = m.header.split(',').nth(1).unwrap_or("").trim().to_owned();
-        return Some((m.x.clone(), Vec::new(), q));
+        return Some((&m.x, &[]));
     }
-    d.maps_2d().into_iter().find(|(f, _)| *f == file).map(|(f, m)| {
-        let q = f.trim_end_matches(".csv").replace('_', " ");
-        (m.x.clone(), m.y.clone(), q)
-    })
+    d.maps_2d().into_iter().find(|(f, _)| *f == file).map(|(_, m)| (m.x.as_slice(), m.y.as_slice()))
+}
+
+/// What map `file` gives: the value column of a 1-D map's header, a 2-D map's name.
+fn quantity(d: &ModelData, file: &str) -> String {
+    match d.maps_1d().into_iter().find(|(f, _)| *f == file) {
+        Some((_, m)) => m.header.split(',').nth(1).unwrap_or("").trim().to_owned(),
+        None => file.trim_end_matches(".csv").replace('_', " "),
+    }
 }
 
 /// Indices of grid `g` whose neighbouring cells hold `v` (inputs beyond the grid count
@@ -199,7 +203,7 @@ fn near(g: &[f32], v: f32, out: &mut [bool]) {
 
 /// One map's candidate nodes: flat indices into its values.
 fn visited(d: &ModelData, file: &str, axis: Axis, sps: &[SetPoints]) -> Vec<usize> {
-    let Some((x, y, _)) = grid(d, file) else { return Vec::new() };
+    let Some((x, y)) = grid(d, file) else { return Vec::new() };
     match axis {
         Axis::One { .. } => (0..x.len()).collect(),
         Axis::Load(_) | Axis::LoadMean => {
@@ -213,8 +217,8 @@ fn visited(d: &ModelData, file: &str, axis: Axis, sps: &[SetPoints]) -> Vec<usiz
                 };
                 hx.iter_mut().for_each(|h| *h = false);
                 hy.iter_mut().for_each(|h| *h = false);
-                near(&x, sp.throttle_pct.clamp(-100.0, 100.0), &mut hx);
-                near(&y, load.clamp(-100.0, 100.0), &mut hy);
+                near(x, sp.throttle_pct.clamp(-100.0, 100.0), &mut hx);
+                near(y, load.clamp(-100.0, 100.0), &mut hy);
                 for (iy, _) in hy.iter().enumerate().filter(|(_, h)| **h) {
                     for (ix, _) in hx.iter().enumerate().filter(|(_, h)| **h) {
                         hit[iy * nx + ix] = true;
@@ -317,7 +321,7 @@ fn roughness(maps: &[&MapNodes], d: &ModelData) -> Vec<f64> {
     };
     let mut off = 0;
     for m in maps {
-        let Some((x, y, _)) = grid(d, m.file) else { continue };
+        let Some((x, y)) = grid(d, m.file) else { continue };
         let nx = x.len();
         let col = |node: usize| m.nodes.iter().position(|&k| k == node).map(|k| k + off);
         // Lines of the grid: rows (along x) and, for 2-D maps, columns (along y).
@@ -396,6 +400,18 @@ fn best_lambda(nm: &Normal, p: &[f64], limit: &[f64]) -> (f64, f64, Vec<f64>) {
         }
     }
     best
+}
+
+/// A penalised fit of a set of maps' nodes.
+struct TableFit {
+    /// Weighted error removed on held-out data.
+    heldout: f64,
+    /// Roughness weight, relative to the mean of `diag(J'WJ)`.
+    lambda: f64,
+    /// Node corrections, in steps.
+    theta: Vec<f64>,
+    /// Weighted error removed on the fitted data, as the linearisation predicts.
+    in_sample: f64,
 }
 
 /// What the stage reads.
@@ -585,9 +601,15 @@ fn select(
         let nm = b.normal(&refs, w);
         let pm = roughness(&mn, base);
         let limit: Vec<f64> = mn.iter().flat_map(|m| m.nodes.iter().map(|_| m.limit)).collect();
-        best_lambda(&nm, &pm, &limit)
+        let (heldout, lambda, theta) = best_lambda(&nm, &pm, &limit);
+        let n = nm.n;
+        let quad: f64 =
+            (0..n).map(|i| (0..n).map(|j| theta[i] * nm.g[i * n + j] * theta[j]).sum::<f64>()).sum();
+        let in_sample = 2.0 * theta.iter().zip(&nm.b).map(|(x, y)| x * y).sum::<f64>() - quad;
+        TableFit { heldout, lambda, theta, in_sample }
     };
-    let (mut set, mut best): (Vec<usize>, (f64, f64, Vec<f64>)) = (Vec::new(), (0.0, 0.0, Vec::new()));
+    let none = TableFit { heldout: 0.0, lambda: 0.0, theta: Vec::new(), in_sample: 0.0 };
+    let (mut set, mut best): (Vec<usize>, TableFit) = (Vec::new(), none);
     loop {
         let trial = (0..maps.len())
             .filter(|s| !set.contains(s))
@@ -597,9 +619,9 @@ fn select(
                 let f = fit_of(&t);
                 (t, f)
             })
-            .max_by(|a, b| a.1 .0.total_cmp(&b.1 .0));
+            .max_by(|a, b| a.1.heldout.total_cmp(&b.1.heldout));
         match trial {
-            Some((t, f)) if f.0 - best.0 >= GAIN_SHARE * excess => {
+            Some((t, f)) if f.heldout - best.heldout >= GAIN_SHARE * excess => {
                 set = t;
                 best = f;
             }
@@ -610,7 +632,8 @@ fn select(
         return None;
     }
     let mn: Vec<&MapNodes> = set.iter().map(|&s| maps[s]).collect();
-    let (held, lambda, theta) = best;
+    let TableFit { heldout: held, lambda, theta, in_sample } = best;
+    let in_sample = in_sample / excess;
     let mut data = corrected(base, &mn, &theta);
     monotone_where_base_is(&mut data, base, &mn);
     let data = Arc::new(data);
@@ -643,13 +666,6 @@ fn select(
     // Capped at all of it: below the estimated noise level is noise, not more excess.
     let confirmed = ((b.energy - e_after) / excess).min(1.0);
     let heldout_reduction = held / excess;
-    let in_sample: f64 = {
-        let refs: Vec<&Vec<Vec<f64>>> = set.iter().flat_map(|&s| cols[s].iter()).collect();
-        let nm = b.normal(&refs, w);
-        let quad: f64 =
-            (0..nm.n).map(|i| (0..nm.n).map(|j| theta[i] * nm.g[i * nm.n + j] * theta[j]).sum::<f64>()).sum();
-        (2.0 * theta.iter().zip(&nm.b).map(|(a, b)| a * b).sum::<f64>() - quad) / excess
-    };
     let refused = worse.or_else(|| {
         (confirmed < 0.5 * in_sample).then(|| {
             format!(
@@ -708,14 +724,14 @@ fn monotone_where_base_is(d: &mut ModelData, base: &ModelData, maps: &[&MapNodes
 
 /// What changed in one map.
 fn summarize(m: &MapNodes, base: &ModelData, now: &ModelData) -> MapCorrection {
-    let (b, nx, ny) = values(base, m.file).unwrap_or_default();
-    let (a, _, _) = values(now, m.file).unwrap_or_default();
+    let (b, nx, ny) = values(base, m.file).unwrap_or((&[], 0, 0));
+    let (a, _, _) = values(now, m.file).unwrap_or((&[], 0, 0));
     let changes: Vec<f64> =
-        b.iter().zip(&a).map(|(x, y)| f64::from(*y) - f64::from(*x)).filter(|d| *d != 0.0).collect();
+        b.iter().zip(a).map(|(x, y)| f64::from(*y) - f64::from(*x)).filter(|d| *d != 0.0).collect();
     let rms = (changes.iter().map(|d| d * d).sum::<f64>() / changes.len().max(1) as f64).sqrt();
     MapCorrection {
         file: m.file,
-        quantity: grid(base, m.file).map(|g| g.2).unwrap_or_default(),
+        quantity: quantity(base, m.file),
         nodes: (changes.len(), nx * ny),
         rms_change: rms,
         max_change: changes.iter().fold(0.0f64, |acc, d| acc.max(d.abs())),

@@ -85,6 +85,22 @@ impl Campaign {
     }
 }
 
+impl Campaign {
+    /// Every run's channels, one run after another.
+    fn joined(
+        &self,
+        each: impl Fn(&RecordedTwin) -> Result<Vec<Vec<f32>>, String>,
+    ) -> Result<Vec<Vec<f32>>, String> {
+        let mut out: Vec<Vec<f32>> = vec![Vec::with_capacity(self.samples()); self.channels().len()];
+        for r in &self.runs {
+            for (all, part) in out.iter_mut().zip(each(r)?) {
+                all.extend(part);
+            }
+        }
+        Ok(out)
+    }
+}
+
 impl Twin for Campaign {
     fn channels(&self) -> &[Channel] {
         self.runs.first().map_or(&[], |r| r.channels.as_slice())
@@ -99,13 +115,7 @@ impl Twin for Campaign {
     }
 
     fn run(&self, fx: &Effects) -> Result<Vec<Vec<f32>>, String> {
-        let mut out: Vec<Vec<f32>> = vec![Vec::with_capacity(self.samples()); self.channels().len()];
-        for r in &self.runs {
-            for (all, part) in out.iter_mut().zip(r.run(fx)?) {
-                all.extend(part);
-            }
-        }
-        Ok(out)
+        self.joined(|r| r.run(fx))
     }
 
     fn resolution(&self) -> Vec<f64> {
@@ -128,13 +138,7 @@ impl Twin for Campaign {
         // Each run strided from its own first sample, as `Twin::run_every` strides the
         // joined series only when every run's length is a multiple of the stride: join
         // whole runs, then stride, so the samples match the fits'.
-        let mut out: Vec<Vec<f32>> = vec![Vec::with_capacity(self.samples()); self.channels().len()];
-        for r in &self.runs {
-            for (all, part) in out.iter_mut().zip(r.run_data(data, fx, 1)?) {
-                all.extend(part);
-            }
-        }
-        Ok(out.into_iter().map(|c| every(c, stride)).collect())
+        Ok(self.joined(|r| r.run_data(data, fx, 1))?.into_iter().map(|c| every(c, stride)).collect())
     }
 }
 
