@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! cargo build --release -p workbench --bin simrod
-//! cargo run --release -p workbench --example blind_loop -- [--cases N] [--first SEED] [--check]
+//! cargo run --release -p workbench --example blind_loop -- [--cases N] [--first SEED] [--check] [--keep DIR]
 //! ```
 //!
 //! Each case is `simrod bench --scenario random` (the physics plant, not the twin; 0–3
@@ -38,7 +38,8 @@
 //! Seeds: the proof uses seeds from 1,000,000 on, never used while developing (tuning
 //! used 500,000 on); `--first` moves them. `--check` exits 1 when a target is missed
 //! (honest >= 95 %, false claims <= 2 %, found >= 95 % single / 98 % campaigns, nothing
-//! hidden claims nothing >= 98 %, coverage 90-99 %).
+//! hidden claims nothing >= 98 %, coverage 90-99 %). `--keep DIR` keeps each case's
+//! files (runs, truth, every round's JSON, effect files and data) in `DIR/SEED`.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -94,6 +95,8 @@ struct Outcome {
     empirical: bool,
     last: String,
     seconds: f64,
+    /// Why a case is not honest: moved channels above their floor, channels made worse.
+    why: Vec<String>,
 }
 
 fn arg(name: &str) -> Option<String> {
@@ -241,6 +244,8 @@ fn blind_loop(dir: &Path, c: &Case) -> Result<(Vec<Value>, Added), String> {
         let kind = j["kind"].as_str().unwrap_or("").to_owned();
         let wrote_fx = j.get("effects_written").is_some();
         let wrote_data = j.get("data_written").is_some();
+        // Kept for inspection with --keep (in a temporary directory otherwise).
+        let _ = std::fs::write(dir.join(format!("r{k}.json")), j.to_string());
         rounds.push(j);
         if kind == "nothing_missing" || !(wrote_fx || wrote_data) {
             break;
@@ -348,19 +353,23 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
     let located = last_j["unexplained"]["channel"].as_str().map(str::to_owned);
     let (mut moved_ok, mut worse, mut any_moved_high) = (true, false, false);
     let mut moved = BTreeSet::new();
-    for ((b, a), f) in before.iter().zip(&after).zip(&floor) {
+    let mut why = Vec::new();
+    for (run, ((b, a), f)) in before.iter().zip(&after).zip(&floor).enumerate() {
         for (((name, e0), (_, e1)), (fl, is_moved)) in b.iter().zip(a).zip(f) {
             if *is_moved {
                 moved.insert(name.clone());
                 if *e1 > FLOOR_FACTOR * fl {
                     moved_ok = false;
                     any_moved_high = true;
+                    why.push(format!("run{run} {name} {:.2}x floor", e1 / fl));
                 }
             } else if *e1 > WORSE_FACTOR * e0.max(*fl) {
                 worse = true;
+                why.push(format!("run{run} {name} worse {:.2}x", e1 / e0.max(*fl)));
             }
             if *is_moved && *e1 > WORSE_FACTOR * e0 {
                 worse = true;
+                why.push(format!("run{run} {name} worse {:.2}x", e1 / e0));
             }
         }
     }
@@ -413,6 +422,7 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         empirical: added.data.is_some(),
         last: last_j["verdict"].as_str().unwrap_or("").chars().take(160).collect(),
         seconds: t0.elapsed().as_secs_f64(),
+        why: if honest { Vec::new() } else { why },
     })
 }
 
@@ -448,6 +458,7 @@ fn main() {
     let n: u64 = arg("--cases").and_then(|v| v.parse().ok()).unwrap_or(200);
     let first: u64 = arg("--first").and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
     let check = std::env::args().any(|a| a == "--check");
+    let keep = arg("--keep").map(PathBuf::from);
     let mut outcomes = Vec::new();
     println!(
         "{:>9} {:<22} {:>4} {:>6} {:>6} {:>7}  last verdict",
@@ -455,6 +466,17 @@ fn main() {
     );
     for seed in first..first + n {
         let dir = tempfile::tempdir().expect("a temporary directory");
+        let dir = match &keep {
+            Some(k) => {
+                let d = k.join(seed.to_string());
+                if let Err(e) = std::fs::create_dir_all(&d) {
+                    println!("{seed:>9} cannot make {}: {e}", d.display());
+                    continue;
+                }
+                Kept::At(d)
+            }
+            None => Kept::Temp(dir),
+        };
         let case = match make_case(dir.path(), seed) {
             Ok(c) => c,
             Err(e) => {
@@ -480,12 +502,30 @@ fn main() {
                     },
                     o.last
                 );
+                if !o.why.is_empty() {
+                    println!("{:>9}   not honest: {}", "", o.why.join(", "));
+                }
                 outcomes.push(o);
             }
             Err(e) => println!("{seed:>9} failed: {e}"),
         }
     }
     std::process::exit(i32::from(!summary(&outcomes) && check));
+}
+
+/// A case's directory: temporary, or kept for inspection (`--keep DIR`).
+enum Kept {
+    Temp(tempfile::TempDir),
+    At(PathBuf),
+}
+
+impl Kept {
+    fn path(&self) -> &Path {
+        match self {
+            Kept::Temp(t) => t.path(),
+            Kept::At(p) => p,
+        }
+    }
 }
 
 /// Print the figures by class and overall; whether every target is met.

@@ -28,7 +28,7 @@ use simrod_io::datadir::ModelData;
 
 use super::engine::{ChannelChange, Options, Twin};
 use super::linalg::solve_spd;
-use super::preparation::{rmse, run_each, Prepared, RunResult};
+use super::preparation::{rmse, run_each, worse_somewhere, Prepared, RunResult, WORSE};
 
 /// Most fit samples the map regressions read (every k-th of [`Prepared::idx`]).
 const SAMPLES: usize = 4000;
@@ -41,8 +41,6 @@ const GAIN_SHARE: f64 = 0.03;
 /// Least share of the remaining excess error the correction must remove, on held-out
 /// data and on the simulator, to be offered.
 const OFFER_SHARE: f64 = 0.10;
-/// No channel's RMSE may grow by more than this factor.
-const WORSE: f64 = 1.10;
 /// Weight of first differences relative to second differences in the roughness.
 const FIRST_DIFF: f64 = 0.1;
 
@@ -362,6 +360,11 @@ fn roughness(maps: &[&MapNodes], d: &ModelData) -> Vec<f64> {
 /// Held-out error removed with roughness weight `lam` (absolute): the sum over folds of
 /// what a fit without the fold removes on it; and the fit on every fold.
 fn heldout(nm: &Normal, p: &[f64], lam: f64) -> (f64, Vec<f64>) {
+    heldout_damped(nm, p, lam, 1.0)
+}
+
+/// As [`heldout`], with every fold's fit taken `alpha` of the way (a damped step).
+fn heldout_damped(nm: &Normal, p: &[f64], lam: f64, alpha: f64) -> (f64, Vec<f64>) {
     let n = nm.n;
     let mut total = 0.0;
     for (gk, bk) in nm.gf.iter().zip(&nm.bf) {
@@ -377,7 +380,7 @@ fn heldout(nm: &Normal, p: &[f64], lam: f64) -> (f64, Vec<f64>) {
                 quad += th[i] * gk[i * n + j] * th[j];
             }
         }
-        total += 2.0 * th.iter().zip(bk).map(|(a, b)| a * b).sum::<f64>() - quad;
+        total += 2.0 * alpha * th.iter().zip(bk).map(|(a, b)| a * b).sum::<f64>() - alpha * alpha * quad;
     }
     let g: Vec<f64> = nm.g.iter().zip(p).map(|(a, q)| a + lam * q).collect();
     let th = solve_spd(&g, &nm.b, 1e-9).unwrap_or_else(|| vec![0.0; n]);
@@ -410,8 +413,9 @@ struct TableFit {
     lambda: f64,
     /// Node corrections, in steps.
     theta: Vec<f64>,
-    /// Weighted error removed on the fitted data, as the linearisation predicts.
-    in_sample: f64,
+    /// The linearised model it was fitted on, and its roughness matrix.
+    nm: Normal,
+    roughness: Vec<f64>,
 }
 
 /// What the stage reads.
@@ -594,7 +598,7 @@ fn select(
     b: &Basis,
 ) -> Option<Empirical> {
     let w = &inp.p.weights;
-    let (rows, excess, sim0) = (&b.rows, b.excess, &b.sim0);
+    let excess = b.excess;
     let fit_of = |set: &[usize]| {
         let refs: Vec<&Vec<Vec<f64>>> = set.iter().flat_map(|&s| cols[s].iter()).collect();
         let mn: Vec<&MapNodes> = set.iter().map(|&s| maps[s]).collect();
@@ -602,13 +606,10 @@ fn select(
         let pm = roughness(&mn, base);
         let limit: Vec<f64> = mn.iter().flat_map(|m| m.nodes.iter().map(|_| m.limit)).collect();
         let (heldout, lambda, theta) = best_lambda(&nm, &pm, &limit);
-        let n = nm.n;
-        let quad: f64 =
-            (0..n).map(|i| (0..n).map(|j| theta[i] * nm.g[i * n + j] * theta[j]).sum::<f64>()).sum();
-        let in_sample = 2.0 * theta.iter().zip(&nm.b).map(|(x, y)| x * y).sum::<f64>() - quad;
-        TableFit { heldout, lambda, theta, in_sample }
+        TableFit { heldout, lambda, theta, nm, roughness: pm }
     };
-    let none = TableFit { heldout: 0.0, lambda: 0.0, theta: Vec::new(), in_sample: 0.0 };
+    let empty = Normal { n: 0, g: Vec::new(), b: Vec::new(), gf: Vec::new(), bf: Vec::new() };
+    let none = TableFit { heldout: 0.0, lambda: 0.0, theta: Vec::new(), nm: empty, roughness: Vec::new() };
     let (mut set, mut best): (Vec<usize>, TableFit) = (Vec::new(), none);
     loop {
         let trial = (0..maps.len())
@@ -631,26 +632,105 @@ fn select(
     if set.is_empty() {
         return None;
     }
-    let mn: Vec<&MapNodes> = set.iter().map(|&s| maps[s]).collect();
-    let TableFit { heldout: held, lambda, theta, in_sample } = best;
-    let in_sample = in_sample / excess;
-    let mut data = corrected(base, &mn, &theta);
-    monotone_where_base_is(&mut data, base, &mn);
-    let data = Arc::new(data);
-    let after = inp.twin.run_data(&data, &inp.fx, inp.p.stride).ok()?;
-    let p = inp.p;
-    let predicted = |c: usize| -> Vec<f64> {
+    // The linearisation can overshoot where maps act nonlinearly (a speed map and a
+    // throttle map corrected together): the step is then taken half or a quarter of the
+    // way; if no part of it holds on the simulator, the set without one of its maps
+    // (the last added first) is refitted and tried. The first step not refused is kept;
+    // if none is, the whole set's full step says why.
+    let attempt = |set: &[usize], fit: &TableFit| -> Option<(Vec<usize>, Step)> {
+        let mn: Vec<&MapNodes> = set.iter().map(|&s| maps[s]).collect();
         let refs: Vec<&Vec<Vec<f64>>> = set.iter().flat_map(|&s| cols[s].iter()).collect();
-        (0..rows.len()).map(|t| refs.iter().zip(&theta).map(|(col, th)| col[c][t] * th).sum()).collect()
+        let mut first = None;
+        for alpha in DAMPING {
+            let s = confirm(inp, base, &mn, &refs, b, fit, alpha)?;
+            if s.refused.is_none() {
+                return Some((set.to_vec(), s));
+            }
+            first.get_or_insert(s);
+        }
+        first.map(|s| (set.to_vec(), s))
     };
+    let (mut chosen, mut step) = attempt(&set, &best)?;
+    if step.refused.is_some() && set.len() > 1 {
+        for drop in (0..set.len()).rev() {
+            let fewer: Vec<usize> =
+                set.iter().enumerate().filter(|(i, _)| *i != drop).map(|(_, &m)| m).collect();
+            let fit = fit_of(&fewer);
+            if fit.heldout < GAIN_SHARE * excess {
+                continue;
+            }
+            if let Some((c, s)) = attempt(&fewer, &fit).filter(|(_, s)| s.refused.is_none()) {
+                (chosen, step) = (c, s);
+                break;
+            }
+        }
+    }
+    let mn: Vec<&MapNodes> = chosen.iter().map(|&s| maps[s]).collect();
+    let s = step;
+    let summaries = mn.iter().map(|m| summarize(m, base, &s.data)).collect();
+    let data = match s.refused {
+        None => Some(label(s.data, &mn, s.heldout, inp.p.folds.len())),
+        Some(_) => None,
+    };
+    Some(Empirical {
+        maps: summaries,
+        lambda: s.lambda,
+        heldout_reduction: s.heldout,
+        confirmed_reduction: s.confirmed,
+        channels: s.channels,
+        refused: s.refused,
+        data,
+    })
+}
+
+/// Fractions of the fitted step tried, in turn.
+const DAMPING: [f64; 3] = [1.0, 0.5, 0.25];
+
+/// A table step taken part of the way and confirmed on the simulator.
+struct Step {
+    data: Arc<ModelData>,
+    /// The fit's roughness weight (relative).
+    lambda: f64,
+    /// Shares of the excess removed on held-out data (linear) and on the simulator.
+    heldout: f64,
+    confirmed: f64,
+    channels: Vec<ChannelChange>,
+    refused: Option<String>,
+}
+
+/// The fit `f` of columns `refs` (maps `mn`) taken `alpha` of the way: its held-out and
+/// predicted figures, and its confirmation on the simulator with the corrected data.
+fn confirm(
+    inp: &Inputs,
+    base: &Arc<ModelData>,
+    mn: &[&MapNodes],
+    refs: &[&Vec<Vec<f64>>],
+    b: &Basis,
+    f: &TableFit,
+    alpha: f64,
+) -> Option<Step> {
+    let (p, w, rows, excess, sim0) = (inp.p, &inp.p.weights, &b.rows, b.excess, &b.sim0);
+    let theta: Vec<f64> = f.theta.iter().map(|t| alpha * t).collect();
+    let nm = &f.nm;
+    let scale = (0..nm.n).map(|i| nm.g[i * nm.n + i]).sum::<f64>() / nm.n.max(1) as f64;
+    let (held, _) = heldout_damped(nm, &f.roughness, f.lambda * scale.max(1e-300), alpha);
+    let quad: f64 =
+        (0..nm.n).map(|i| (0..nm.n).map(|j| theta[i] * nm.g[i * nm.n + j] * theta[j]).sum::<f64>()).sum();
+    let in_sample = (2.0 * theta.iter().zip(&nm.b).map(|(x, y)| x * y).sum::<f64>() - quad) / excess;
+    let mut data = corrected(base, mn, &theta);
+    monotone_where_base_is(&mut data, base, mn);
+    let data = Arc::new(data);
+    let after = inp.twin.run_data(&data, &inp.fx, p.stride).ok()?;
     let mut channels = Vec::new();
     let (mut e_after, mut worse) = (0.0, None);
+    let all: Vec<usize> = (0..rows.len()).collect();
     for (c, name) in inp.channels.iter().enumerate() {
         let meas: Vec<f64> = rows.iter().map(|&t| p.meas[c][t]).collect();
         let before: Vec<f64> = rows.iter().map(|&t| f64::from(sim0[c][t])).collect();
         let now: Vec<f64> = rows.iter().map(|&t| f64::from(after[c][t])).collect();
-        let lin: Vec<f64> = before.iter().zip(predicted(c)).map(|(a, d)| a + d).collect();
-        let all: Vec<usize> = (0..rows.len()).collect();
+        let lin: Vec<f64> = (0..rows.len())
+            .map(|t| before[t] + refs.iter().zip(&theta).map(|(col, th)| col[c][t] * th).sum::<f64>())
+            .collect();
         let (rb, ra) = (rmse(&meas, &before, &all), rmse(&meas, &now, &all));
         e_after += w[c] * ra * ra * rows.len() as f64;
         if ra > WORSE * rb && worse.is_none() {
@@ -663,9 +743,16 @@ fn select(
             rmse_confirmed: Some(ra),
         });
     }
+    // On each run of a campaign too: a table that helps one run and harms another is
+    // refused.
+    if worse.is_none() {
+        worse = worse_somewhere(p, sim0, &after, rows, inp.o).map(|(c, f, k)| {
+            format!("it would make {} worse on run {} ({k:.2}x its RMSE)", inp.channels[c].name(), f + 1)
+        });
+    }
     // Capped at all of it: below the estimated noise level is noise, not more excess.
     let confirmed = ((b.energy - e_after) / excess).min(1.0);
-    let heldout_reduction = held / excess;
+    let heldout = held / excess;
     let refused = worse.or_else(|| {
         (confirmed < 0.5 * in_sample).then(|| {
             format!(
@@ -676,29 +763,16 @@ fn select(
         })
     });
     let refused = refused.or_else(|| {
-        (heldout_reduction < OFFER_SHARE || confirmed < OFFER_SHARE).then(|| {
+        (heldout < OFFER_SHARE || confirmed < OFFER_SHARE).then(|| {
             format!(
                 "it removes {:.0} % of the excess on held-out data and {:.0} % on the simulator (at least {:.0} % needed)",
-                100.0 * heldout_reduction,
+                100.0 * heldout,
                 100.0 * confirmed,
                 100.0 * OFFER_SHARE
             )
         })
     });
-    let summaries = mn.iter().map(|m| summarize(m, base, &data)).collect();
-    let data = match refused {
-        None => Some(label(data, &mn, heldout_reduction, inp.p.folds.len())),
-        Some(_) => None,
-    };
-    Some(Empirical {
-        maps: summaries,
-        lambda,
-        heldout_reduction,
-        confirmed_reduction: confirmed,
-        channels,
-        refused,
-        data,
-    })
+    Some(Step { data, lambda: f.lambda, heldout, confirmed, channels, refused })
 }
 
 /// Speed and throttle maps that never decrease in the base data do not in the

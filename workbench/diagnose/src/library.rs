@@ -30,6 +30,12 @@ pub struct ParamSpec {
 }
 
 impl ParamSpec {
+    /// Whether it is a cause of the measurement chain (one parameter of one channel's
+    /// gain, offset, delay or lag), not of the physics.
+    pub fn is_chain(&self) -> bool {
+        self.cause != self.effect
+    }
+
     /// The smallest step in which the model can realise the parameter, at time step `dt`
     /// (0 where it is continuous).
     pub fn quantum(&self, dt: f64) -> f64 {

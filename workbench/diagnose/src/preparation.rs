@@ -33,6 +33,8 @@ pub(super) struct Prepared {
     /// Per fit sample, its held-out fold: the run it belongs to in a campaign, else one
     /// of [`TIME_FOLDS`] contiguous stretches of the run.
     pub folds: Vec<usize>,
+    /// Recorded runs (a campaign: more than one; then `folds` are the runs).
+    pub runs: usize,
     /// Weighted squared error of the current model.
     pub e0: f64,
     /// What noise alone would give (one per fit sample and channel).
@@ -74,7 +76,8 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
     let base_sim: Vec<Vec<f32>> = base_sim.into_iter().map(|c| every(c, stride)).collect();
     let base: Vec<Vec<f64>> = base_sim.iter().map(|c| c.iter().map(|v| f64::from(*v)).collect()).collect();
     let idx: Vec<usize> = (0..base.first().map_or(0, Vec::len)).collect();
-    let folds = folds(&twin.segments(), stride, idx.len());
+    let segments = twin.segments();
+    let folds = folds(&segments, stride, idx.len());
     let mut p = Prepared {
         meas: meas.iter().map(|m| every(m.clone(), stride)).collect(),
         base_sim,
@@ -85,6 +88,7 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         idx,
         stride,
         folds,
+        runs: segments.len(),
         e0: 0.0,
         e_noise: 0.0,
         excess: 0.0,
@@ -179,6 +183,40 @@ pub(super) fn channel_energies(p: &Prepared, sim: &[Vec<f32>]) -> Vec<f64> {
         .zip(&p.weights)
         .map(|((m, s), w)| p.idx.iter().map(|&t| w * (m[t] - f64::from(s[t])).powi(2)).sum())
         .collect()
+}
+
+/// Most a channel's RMSE may grow, on any run of a campaign or stretch of a run, for a
+/// change of the model (a library proposal, an empirical table) to be offered.
+pub(super) const WORSE: f64 = 1.10;
+
+/// The first channel and run (0 for a single run) on which `after` has an RMSE more
+/// than [`WORSE`] times `before`'s, over the fit samples `rows`, by more than a chance
+/// change (`o.min_reduction_of_noise` of the noise energy there); with the factor.
+/// Not "above the noise": a channel's noise level is estimated over the whole campaign,
+/// and one run's fast errors can raise it above another run's whole error.
+pub(super) fn worse_somewhere(
+    p: &Prepared,
+    before: &[Vec<f32>],
+    after: &[Vec<f32>],
+    rows: &[usize],
+    o: &Options,
+) -> Option<(usize, usize, f64)> {
+    let nf = p.runs.max(1);
+    let run = |t: usize| if nf > 1 { p.folds.get(t).copied().unwrap_or(0).min(nf - 1) } else { 0 };
+    (0..p.meas.len()).find_map(|c| {
+        let (mut e0, mut e1, mut n) = (vec![0.0; nf], vec![0.0; nf], vec![0usize; nf]);
+        for &t in rows {
+            let f = run(t);
+            e0[f] += p.weights[c] * (p.meas[c][t] - f64::from(before[c][t])).powi(2);
+            e1[f] += p.weights[c] * (p.meas[c][t] - f64::from(after[c][t])).powi(2);
+            n[f] += 1;
+        }
+        (0..nf)
+            .find(|&f| {
+                e1[f] > WORSE * WORSE * e0[f] && e1[f] - e0[f] > o.min_reduction_of_noise * n[f] as f64
+            })
+            .map(|f| (c, f, (e1[f] / e0[f].max(1e-300)).sqrt()))
+    })
 }
 
 /// Root-mean-square of `m - s` on the samples `idx`.

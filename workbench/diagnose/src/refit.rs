@@ -330,6 +330,7 @@ mod tests {
             idx: (0..n).collect(),
             stride: 1,
             folds: vec![0; n],
+            runs: 1,
             e0: 0.0,
             e_noise: n as f64,
             excess: 1.0,

@@ -88,6 +88,11 @@ pub(super) fn score_effects(
 /// The channels that carry at least [`MOVES_SHARE`] of the parameters' weighted
 /// sensitivity (`J'WJ`'s diagonal per channel), in channel order.
 fn moved_channels(s: &Sensitivities, channels: &[Channel], ix: &[usize]) -> Vec<&'static str> {
+    moved(s, ix).into_iter().filter_map(|c| channels.get(c).map(|ch| ch.name())).collect()
+}
+
+/// Indices of the channels [`moved_channels`] names.
+fn moved(s: &Sensitivities, ix: &[usize]) -> Vec<usize> {
     let np = s.np();
     let per: Vec<f64> =
         s.gc.iter().map(|g| ix.iter().map(|&i| g.get(i * np + i).copied().unwrap_or(0.0)).sum()).collect();
@@ -95,7 +100,7 @@ fn moved_channels(s: &Sensitivities, channels: &[Channel], ix: &[usize]) -> Vec<
     if total.is_nan() || total <= 0.0 {
         return Vec::new();
     }
-    channels.iter().zip(&per).filter(|(_, e)| **e >= MOVES_SHARE * total).map(|(c, _)| c.name()).collect()
+    (0..per.len()).filter(|&c| per[c] >= MOVES_SHARE * total).collect()
 }
 
 /// The linear fit's values, not yet with an uncertainty (that needs the refit).
@@ -157,11 +162,36 @@ const JOIN_HELD_OUT: f64 = 0.025;
 /// excess)`, in the order chosen: the set the verdict names.
 pub(super) fn greedy(p: &Prepared, s: &Sensitivities, o: &Options) -> Vec<(&'static str, f64)> {
     let params = |gs: &[usize]| group_params(s, gs);
+    // A one-channel member that the set leaves above the noise on its channel is taken
+    // out and the selection run again without it (see `absorbers`).
+    let mut excluded: Vec<usize> = Vec::new();
+    let chosen = loop {
+        let mut chosen = forward(p, s, o, &excluded);
+        backward(s, p, &mut chosen);
+        let bad = absorbers(p, s, o, &chosen);
+        if bad.is_empty() {
+            break chosen;
+        }
+        excluded.extend(bad);
+    };
+    let mut out = Vec::with_capacity(chosen.len());
+    let mut before = 0.0;
+    for k in 0..chosen.len() {
+        let red = fit_lin(s, &params(&chosen[..=k])).1;
+        out.push((s.groups[chosen[k]].0, (red - before) / p.excess));
+        before = red;
+    }
+    out
+}
+
+/// Forward steps over the effect groups not `excluded`.
+fn forward(p: &Prepared, s: &Sensitivities, o: &Options, excluded: &[usize]) -> Vec<usize> {
+    let params = |gs: &[usize]| group_params(s, gs);
     let mut chosen: Vec<usize> = Vec::new();
     for _ in 0..o.max_selected {
         let base = fit_lin(s, &params(&chosen)).1;
         let mut best: Option<(usize, f64)> = None;
-        for gi in (0..s.groups.len()).filter(|g| !chosen.contains(g)) {
+        for gi in (0..s.groups.len()).filter(|g| !chosen.contains(g) && !excluded.contains(g)) {
             let mut with = chosen.clone();
             with.push(gi);
             let inc = fit_lin(s, &params(&with)).1 - base;
@@ -178,15 +208,63 @@ pub(super) fn greedy(p: &Prepared, s: &Sensitivities, o: &Options) -> Vec<(&'sta
         }
         chosen = with;
     }
-    backward(s, p, &mut chosen);
-    let mut out = Vec::with_capacity(chosen.len());
-    let mut before = 0.0;
-    for k in 0..chosen.len() {
-        let red = fit_lin(s, &params(&chosen[..=k])).1;
-        out.push((s.groups[chosen[k]].0, (red - before) / p.excess));
-        before = red;
+    chosen
+}
+
+/// Whether a cause that moves one channel alone, taking its weighted error from
+/// `before` to `after` over `samples` fit samples, only absorbs part of what is wrong
+/// there: it leaves the channel above `o.noise_like_ratio` of the noise. A real fault
+/// of the measurement chain (`chain`), once fitted, leaves its channel noise-like; a
+/// gain or an offset that takes a share of a channel's error is the cheapest
+/// description of *any* error there (a wrong map, a missing physical effect) and would
+/// be claimed falsely. A physical effect the run shows on one channel only has a shape
+/// of its own (a ramp rate acts on ramps): it absorbs only when it also removes less
+/// than `o.explain_fraction` of the channel's excess.
+pub(super) fn absorbs(before: f64, after: f64, samples: usize, chain: bool, o: &Options) -> bool {
+    let m = samples.max(1) as f64;
+    let excess = (before - m).max(1e-12);
+    after / m > o.noise_like_ratio && (chain || (before - after) / excess < o.explain_fraction)
+}
+
+/// Whether the candidate cause `cause` belongs to the measurement chain.
+pub(super) fn is_chain(s: &Sensitivities, cause: &str) -> bool {
+    s.specs.iter().any(|sp| sp.cause == cause && sp.is_chain())
+}
+
+/// Members of a set of two or more that move one channel alone (a sensor cause, in the
+/// sense of [`Candidate::is_sensor`]) and that [`absorbs`] in the set's linear fit,
+/// counting only what the member adds to the rest of the set there: they would bias
+/// the rest of the set.
+fn absorbers(p: &Prepared, s: &Sensitivities, o: &Options, chosen: &[usize]) -> Vec<usize> {
+    if chosen.len() < 2 {
+        return Vec::new();
     }
-    out
+    // Weighted error of channel `c` after the linear fit of the groups `gs`.
+    let left = |c: usize, gs: &[usize]| -> f64 {
+        let ix = group_params(s, gs);
+        let (th, _) = fit_lin(s, &ix);
+        let gs = sub_matrix(&s.gc[c], s.np(), &ix);
+        let bs: Vec<f64> = ix.iter().map(|&i| s.bc[c][i]).collect();
+        let before: f64 = p.idx.iter().map(|&t| p.weights[c] * (p.meas[c][t] - p.base[c][t]).powi(2)).sum();
+        before - (2.0 * th.iter().zip(&bs).map(|(a, x)| a * x).sum::<f64>() - quad(&gs, &th))
+    };
+    chosen
+        .iter()
+        .copied()
+        .filter(|&g| {
+            let Some(c) = one_channel(s, &s.groups[g].1) else { return false };
+            let rest: Vec<usize> = chosen.iter().copied().filter(|&x| x != g).collect();
+            absorbs(left(c, &rest), left(c, chosen), p.idx.len(), is_chain(s, s.groups[g].0), o)
+        })
+        .collect()
+}
+
+/// The channel the parameters `ix` move, when they move one alone.
+fn one_channel(s: &Sensitivities, ix: &[usize]) -> Option<usize> {
+    match moved(s, ix).as_slice() {
+        [c] => Some(*c),
+        _ => None,
+    }
 }
 
 /// The parameter indices of the effect groups `gs`.

@@ -7,8 +7,9 @@ use model_core::{Channel, Effects};
 
 use super::engine::{Candidate, ConfoundedGroup, Location, Options, SetFit, VerdictKind};
 use super::library::{with_values, ParamSpec};
-use super::preparation::{channel_energies, Prepared};
+use super::preparation::{channel_energies, worse_somewhere, Prepared};
 use super::refit::Fit;
+use super::selection::{absorbs, is_chain};
 use super::sensitivities::Sensitivities;
 use simrod_compare::structure;
 
@@ -73,11 +74,39 @@ impl Evidence<'_> {
         self.fits.iter().find(|(ci, _)| self.cands[*ci].effect == effect).map(|(_, f)| f)
     }
 
-    /// A candidate counts when it is significant and its refit removed at least
-    /// `min_reduction_of_noise` of the noise energy.
+    /// A candidate counts when it is significant, its refit removed at least
+    /// `min_reduction_of_noise` of the noise energy, it is not a one-channel cause that
+    /// only absorbs part of what else is wrong on its channel ([`Self::absorbs`]), and
+    /// it makes no channel worse on any run ([`Self::worse_somewhere`]).
     fn counts(&self, c: &Candidate) -> bool {
         let floor = self.o.min_reduction_of_noise * self.p.e_noise;
-        c.significant && self.after(c.effect).is_some_and(|f| self.p.e0 - f.energy >= floor)
+        c.significant
+            && self.after(c.effect).is_some_and(|f| {
+                self.p.e0 - f.energy >= floor && !self.absorbs(c, &f.sim) && !self.worse_somewhere(&f.sim)
+            })
+    }
+
+    /// Whether `sim` makes some channel worse, on the run or on one run of a campaign
+    /// ([`worse_somewhere`]): a proposal that trades one run's error for another's is
+    /// not a physical effect of both, and the user would be told to make a run worse.
+    fn worse_somewhere(&self, sim: &[Vec<f32>]) -> bool {
+        worse_somewhere(self.p, &self.p.base_sim, sim, &self.p.idx, self.o).is_some()
+    }
+
+    /// A sensor cause (it moves one channel alone) that leaves its channel in `sim`
+    /// above the noise ([`super::selection::absorbs`]).
+    fn absorbs(&self, c: &Candidate, sim: &[Vec<f32>]) -> bool {
+        let Some(ch) =
+            c.is_sensor().then(|| self.channels.iter().position(|x| x.name() == c.moves[0])).flatten()
+        else {
+            return false;
+        };
+        let before = channel_energies(self.p, &self.p.base_sim);
+        let after = channel_energies(self.p, sim);
+        match (before.get(ch), after.get(ch)) {
+            (Some(b), Some(a)) => absorbs(*b, *a, self.p.idx.len(), is_chain(self.s, c.effect), self.o),
+            _ => false,
+        }
     }
 
     /// The base effects plus the lead's refitted values.
@@ -271,8 +300,16 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     if single_energy - set.fit.energy < o.min_reduction_of_noise * p.e_noise {
         return None;
     }
+    // A sensor member that leaves its channel above the noise only absorbs error there.
+    let member = |e: &&'static str| ev.cands.iter().find(|c| c.effect == *e);
+    if set.effects.iter().filter_map(member).any(|c| ev.absorbs(c, &set.fit.sim))
+        || ev.worse_somewhere(&set.fit.sim)
+    {
+        return None;
+    }
     let (red_a, after_a) = ev.on_affected(&set.fit);
     let ratio_after = set.fit.energy / p.e_noise;
+    let removed = (p.e0 - set.fit.energy) / p.excess;
     let names = describe_set(set, ev.cands);
     let explains = red_a >= o.explain_fraction && after_a <= o.noise_like_ratio;
     let left = ev.structure_left(&set.fit.sim);
@@ -289,6 +326,9 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
             st.left("they")
         );
         (VerdictKind::Partial, text, Some(st.location()))
+    } else if removed < o.unexplained_fraction {
+        // As for one effect: a set that explains too little is not proposed.
+        return None;
     } else {
         let loc = ev.locate_rest(&set.fit.sim);
         let text = format!(
@@ -307,7 +347,7 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
         unexplained,
         proposed: with_values(&o.base, &specs, &set.fit.values),
         named: set.effects.clone(),
-        removed: (p.e0 - set.fit.energy) / p.excess,
+        removed,
     })
 }
 
