@@ -547,6 +547,18 @@ pub fn render(d: &Diagnosed) -> String {
             loc.window_s.0,
             loc.window_s.1
         ));
+        if let Some((name, e, t)) = &loc.region {
+            o.push_str(&format!(
+                "  operating region: {} of its excess in {name} ({} of the time)\n",
+                pct(*e),
+                pct(*t)
+            ));
+        }
+        if let Some((name, r)) = &loc.follows {
+            o.push_str(&format!(
+                "  it follows {name} (correlation {r:.2}): look at the block that reads it\n"
+            ));
+        }
     }
     o.push_str(&format!(
         "\ndiagnose took {:.2} s (load and align {:.2} s, engine {:.2} s)\n",

@@ -323,7 +323,8 @@ fn floors(run: &Path, exact: &Path) -> Vec<(String, f64)> {
 /// A wrong map the library has no effect for (issue 12, item 5), on the physics plant:
 /// the bench's left load torque is 8 % stronger wherever it regenerates. Round 1 claims
 /// no library effect (the best, a friction scale, removes less than a table of the map
-/// does on held-out data) and offers an empirical correction of load_torque_L, labelled
+/// does on held-out data), locates the rest (a channel, an operating region, the flange
+/// torque it follows) and offers an empirical correction of load_torque_L, labelled
 /// as such in the data it writes; following the loop, every channel ends within 1.2x
 /// the true plant model's error on the file and on a run the fits never saw (another
 /// load scale, other noise), and none is made worse.
@@ -369,6 +370,13 @@ fn a_wrong_map_gets_a_located_empirical_correction_that_holds_on_unseen_data() {
                 .map(|m| m["file"].as_str().unwrap())
                 .collect();
             assert_eq!(maps.first(), Some(&"load_torque_L.csv"), "{verdict}");
+            // Located beyond its channel: the residual follows the flange torque, the
+            // input of the block whose map is wrong.
+            let follows = &j["unexplained"]["follows"];
+            let signal = follows[0].as_str().unwrap_or("");
+            assert!(signal.starts_with("C_Kistler_"), "follows {follows}: {verdict}");
+            assert!(follows[1].as_f64().unwrap().abs() >= 0.5, "follows {follows}");
+            assert!(j["unexplained"]["region"][0].is_string(), "{verdict}");
             let text = std::fs::read_to_string(p.join(&out).join("load_torque_L.csv")).unwrap();
             assert!(text.contains("# EMPIRICAL CORRECTION"), "the written map is labelled");
             let untouched = std::fs::read_to_string(p.join(&out).join("load_current_L.csv")).unwrap();

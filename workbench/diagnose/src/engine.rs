@@ -252,6 +252,11 @@ pub struct Location {
     pub share: f64,
     /// The worst window [s, s] of that channel's residual.
     pub window_s: (f64, f64),
+    /// The operating region holding the largest share of the channel's excess: (name,
+    /// share of the excess, share of the samples).
+    pub region: Option<(String, f64, f64)>,
+    /// The measured signal (or `d/dt` of one) the residual follows, and the correlation.
+    pub follows: Option<(String, f64)>,
 }
 
 /// The verdict, machine-readable.

@@ -7,6 +7,7 @@ use model_core::{Channel, Effects};
 
 use super::engine::{Candidate, ConfoundedGroup, Location, Options, SetFit, VerdictKind};
 use super::library::{with_values, ParamSpec};
+use super::locate::{follows, region};
 use super::preparation::{channel_energies, worse_somewhere, Prepared};
 use super::refit::Fit;
 use super::selection::{absorbs, is_chain};
@@ -157,6 +158,8 @@ impl Evidence<'_> {
             channel: self.channels[c].name(),
             share: e.max(0.0) / total,
             window_s: (at as f64 * dt, (at + win) as f64 * dt),
+            region: region(p, c, sim),
+            follows: follows(p, self.channels, c, sim),
         }
     }
 
@@ -384,7 +387,7 @@ pub(super) struct Structure {
 impl Structure {
     /// Where it is, as a verdict's location.
     fn location(&self) -> Location {
-        Location { channel: self.channel, share: 1.0, window_s: self.window_s }
+        Location { channel: self.channel, share: 1.0, window_s: self.window_s, region: None, follows: None }
     }
 
     /// "structure is left that `who` do(es) not explain: …".
@@ -477,12 +480,18 @@ fn cause_kind(l: &Candidate) -> String {
 }
 
 pub(super) fn place(loc: &Location) -> String {
+    let region = loc.region.as_ref().map(|(name, e, t)| {
+        format!("; {:.0} % of its excess in {name} ({:.0} % of the time)", 100.0 * e, 100.0 * t)
+    });
+    let follows = loc.follows.as_ref().map(|(name, r)| format!("; it follows {name} (correlation {r:.2})"));
     format!(
-        "{} ({:.0} % of the excess), worst at {:.1}–{:.1} s",
+        "{} ({:.0} % of the excess), worst at {:.1}–{:.1} s{}{}",
         loc.channel,
         100.0 * loc.share,
         loc.window_s.0,
-        loc.window_s.1
+        loc.window_s.1,
+        region.unwrap_or_default(),
+        follows.unwrap_or_default()
     )
 }
 
