@@ -391,8 +391,7 @@ fn heldout_damped(nm: &Normal, p: &[f64], lam: f64, alpha: f64) -> (f64, Vec<f64
 /// of every node (a linearisation is trusted only so far): (held-out removal,
 /// relative λ, fit).
 fn best_lambda(nm: &Normal, p: &[f64], limit: &[f64]) -> (f64, f64, Vec<f64>) {
-    let n = nm.n.max(1);
-    let scale = (0..nm.n).map(|i| nm.g[i * nm.n + i]).sum::<f64>() / n as f64;
+    let scale = diag_mean(nm);
     let mut best = (f64::NEG_INFINITY, 0.0, vec![0.0; nm.n]);
     for k in -12..=8 {
         let rel = 10f64.powf(f64::from(k) / 2.0);
@@ -403,6 +402,11 @@ fn best_lambda(nm: &Normal, p: &[f64], limit: &[f64]) -> (f64, f64, Vec<f64>) {
         }
     }
     best
+}
+
+/// The mean of `diag(J'WJ)`: the scale relative roughness weights are given in.
+fn diag_mean(nm: &Normal) -> f64 {
+    (0..nm.n).map(|i| nm.g[i * nm.n + i]).sum::<f64>() / nm.n.max(1) as f64
 }
 
 /// A penalised fit of a set of maps' nodes.
@@ -712,8 +716,7 @@ fn confirm(
     let (p, w, rows, excess, sim0) = (inp.p, &inp.p.weights, &b.rows, b.excess, &b.sim0);
     let theta: Vec<f64> = f.theta.iter().map(|t| alpha * t).collect();
     let nm = &f.nm;
-    let scale = (0..nm.n).map(|i| nm.g[i * nm.n + i]).sum::<f64>() / nm.n.max(1) as f64;
-    let (held, _) = heldout_damped(nm, &f.roughness, f.lambda * scale.max(1e-300), alpha);
+    let (held, _) = heldout_damped(nm, &f.roughness, f.lambda * diag_mean(nm).max(1e-300), alpha);
     let quad: f64 =
         (0..nm.n).map(|i| (0..nm.n).map(|j| theta[i] * nm.g[i * nm.n + j] * theta[j]).sum::<f64>()).sum();
     let in_sample = (2.0 * theta.iter().zip(&nm.b).map(|(x, y)| x * y).sum::<f64>() - quad) / excess;

@@ -7,7 +7,7 @@ use model_core::Channel;
 
 use super::engine::{Candidate, ChannelChange, FittedParam, Options, MOVES_SHARE};
 use super::linalg::{quad, solve_spd, sub_matrix};
-use super::preparation::{region_errors, rmse, Prepared};
+use super::preparation::{channel_energies, region_errors, rmse, Prepared};
 use super::sensitivities::Sensitivities;
 
 /// Bounded linear fit of the parameters `ix`: coefficients (in steps) and the weighted
@@ -239,14 +239,14 @@ fn absorbers(p: &Prepared, s: &Sensitivities, o: &Options, chosen: &[usize]) -> 
     if chosen.len() < 2 {
         return Vec::new();
     }
+    let before = channel_energies(p, &p.base_sim);
     // Weighted error of channel `c` after the linear fit of the groups `gs`.
     let left = |c: usize, gs: &[usize]| -> f64 {
         let ix = group_params(s, gs);
         let (th, _) = fit_lin(s, &ix);
         let gs = sub_matrix(&s.gc[c], s.np(), &ix);
         let bs: Vec<f64> = ix.iter().map(|&i| s.bc[c][i]).collect();
-        let before: f64 = p.idx.iter().map(|&t| p.weights[c] * (p.meas[c][t] - p.base[c][t]).powi(2)).sum();
-        before - (2.0 * th.iter().zip(&bs).map(|(a, x)| a * x).sum::<f64>() - quad(&gs, &th))
+        before[c] - (2.0 * th.iter().zip(&bs).map(|(a, x)| a * x).sum::<f64>() - quad(&gs, &th))
     };
     chosen
         .iter()
