@@ -4,6 +4,7 @@
 //! ```text
 //! cargo build --release -p workbench --bin simrod
 //! cargo run --release -p workbench --example blind_loop -- [--cases N] [--first SEED] [--check] [--keep DIR]
+//! cargo run --release -p workbench --example blind_loop -- --replay DIR [--cases N] [--first SEED]
 //! ```
 //!
 //! Each case is `simrod bench --scenario random` (the physics plant, not the twin; 0–3
@@ -39,7 +40,9 @@
 //! used 500,000 on); `--first` moves them. `--check` exits 1 when a target is missed
 //! (honest >= 95 %, false claims <= 2 %, found >= 95 % single / 98 % campaigns, nothing
 //! hidden claims nothing >= 98 %, coverage 90-99 %). `--keep DIR` keeps each case's
-//! files (runs, truth, every round's JSON, effect files and data) in `DIR/SEED`.
+//! files (runs, truth, every round's JSON, effect files and data) in `DIR/SEED`;
+//! `--replay DIR` judges those kept rounds again without running a diagnosis (a change
+//! of the judge, or of `compare`, seen on the same decisions in minutes).
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -48,7 +51,7 @@ use std::time::Instant;
 
 use serde_json::Value;
 use workbench::measure::{load, Measurement};
-use workbench::stats::Rng;
+use workbench::stats::{rms, Rng};
 use workbench::vbench::bench_effects::format_bench_effects;
 use workbench::vbench::scenario::{is_moved, Pick, Scenario};
 
@@ -73,6 +76,8 @@ struct Case {
     /// Noise-free: the same bench, and the same test with nothing hidden.
     exact: Vec<PathBuf>,
     clean: Vec<PathBuf>,
+    /// Judge the rounds a kept directory holds instead of running them (`--replay`).
+    replay: bool,
 }
 
 /// What happened to one case.
@@ -120,7 +125,7 @@ fn strings(v: &[&str]) -> Vec<String> {
 
 /// The runs of case `seed`: the scenario's own, then for a campaign 1–4 more of the
 /// same bench on other profiles and scales; each with its noise-free twin.
-fn make_case(dir: &Path, seed: u64) -> Result<Case, String> {
+fn make_case(dir: &Path, seed: u64, replay: bool) -> Result<Case, String> {
     let scenario = Scenario::draw(seed);
     let mut r = Rng::new(seed, 7);
     let extra = if r.uniform() < 0.4 { 1 + r.index(4) } else { 0 };
@@ -157,14 +162,20 @@ fn make_case(dir: &Path, seed: u64) -> Result<Case, String> {
         if k == 0 {
             quiet.extend(strings(&["--truth", "exact0.truth.toml"]));
         }
-        simrod(dir, &a)?;
-        simrod(dir, &quiet)?;
-        simrod(dir, &nothing)?;
+        if replay {
+            if let Some(f) = [&run, &ex, &cl].into_iter().find(|f| !dir.join(f).is_file()) {
+                return Err(format!("--replay: {} has no {f}", dir.display()));
+            }
+        } else {
+            simrod(dir, &a)?;
+            simrod(dir, &quiet)?;
+            simrod(dir, &nothing)?;
+        }
         runs.push(dir.join(run));
         exact.push(dir.join(ex));
         clean.push(dir.join(cl));
     }
-    Ok(Case { seed, scenario, runs, exact, clean })
+    Ok(Case { seed, scenario, runs, exact, clean, replay })
 }
 
 /// What the loop has added so far: the last effect file and the last model data
@@ -203,9 +214,21 @@ fn twin_errors(dir: &Path, c: &Case, added: &Added) -> Result<Vec<Vec<(String, f
         .collect()
 }
 
+/// A hidden cause that changes a channel by more than this share of its floor (RMS)
+/// takes a twin without it above [`FLOOR_FACTOR`] times the floor (√(1.2² − 1)): the
+/// channel is moved, however small the change is against the channel's span.
+const VISIBLE: f64 = 0.663;
+
+/// RMS difference of two series over their common length.
+fn rms_diff(a: &[f64], b: &[f64]) -> f64 {
+    rms(&a.iter().zip(b).map(|(x, y)| x - y).collect::<Vec<f64>>())
+}
+
 /// Per run and channel (in `names`' order): the RMS difference between the file and the
 /// noise-free run, the error of the true plant model; and whether the hidden causes move
-/// the channel (noise-free bench against noise-free nothing-hidden run).
+/// the channel (noise-free bench against noise-free nothing-hidden run: by 1 % of its
+/// span, or by enough to show above its floor, [`VISIBLE`]). Both runs are the plant's,
+/// so the twin's own differences from the plant never make a channel moved.
 fn floors(c: &Case, names: &[Vec<(String, f64)>]) -> Result<Vec<Vec<(f64, bool)>>, String> {
     let read = |p: &PathBuf| -> Result<Measurement, String> { load(p, None).map_err(|e| e.to_string()) };
     c.runs
@@ -218,9 +241,9 @@ fn floors(c: &Case, names: &[Vec<(String, f64)>]) -> Result<Vec<Vec<(f64, bool)>
                 .iter()
                 .map(|(name, _)| match (m.signal(name), e.signal(name), q.signal(name)) {
                     (Some(a), Some(b), Some(z)) => {
-                        let n = a.values.len().min(b.values.len()).max(1);
-                        let s: f64 = a.values.iter().zip(&b.values).map(|(x, y)| (x - y) * (x - y)).sum();
-                        ((s / n as f64).sqrt(), is_moved(&b.values, &z.values))
+                        let floor = rms_diff(&a.values, &b.values);
+                        let visible = rms_diff(&b.values, &z.values) > VISIBLE * floor;
+                        (floor, is_moved(&b.values, &z.values) || visible)
                     }
                     _ => (f64::NAN, false),
                 })
@@ -240,12 +263,19 @@ fn blind_loop(dir: &Path, c: &Case) -> Result<(Vec<Value>, Added), String> {
         a.extend(runs.iter().cloned());
         a.extend(strings(&["--json", "--write-effects", &out, "--write-data", &data]));
         a.extend(added.flags());
-        let j: Value = serde_json::from_str(&simrod(dir, &a)?).map_err(|e| e.to_string())?;
+        let kept = dir.join(format!("r{k}.json"));
+        let text = match c.replay {
+            true => std::fs::read_to_string(&kept).map_err(|e| format!("--replay: {}: {e}", kept.display()))?,
+            false => simrod(dir, &a)?,
+        };
+        let j: Value = serde_json::from_str(&text).map_err(|e| e.to_string())?;
         let kind = j["kind"].as_str().unwrap_or("").to_owned();
         let wrote_fx = j.get("effects_written").is_some();
         let wrote_data = j.get("data_written").is_some();
         // Kept for inspection with --keep (in a temporary directory otherwise).
-        let _ = std::fs::write(dir.join(format!("r{k}.json")), j.to_string());
+        if !c.replay {
+            let _ = std::fs::write(&kept, j.to_string());
+        }
         rounds.push(j);
         if kind == "nothing_missing" || !(wrote_fx || wrote_data) {
             break;
@@ -458,7 +488,8 @@ fn main() {
     let n: u64 = arg("--cases").and_then(|v| v.parse().ok()).unwrap_or(200);
     let first: u64 = arg("--first").and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
     let check = std::env::args().any(|a| a == "--check");
-    let keep = arg("--keep").map(PathBuf::from);
+    let replay = arg("--replay").map(PathBuf::from);
+    let keep = replay.clone().or_else(|| arg("--keep").map(PathBuf::from));
     let mut outcomes = Vec::new();
     println!(
         "{:>9} {:<22} {:>4} {:>6} {:>6} {:>7}  last verdict",
@@ -477,7 +508,7 @@ fn main() {
             }
             None => Kept::Temp(dir),
         };
-        let case = match make_case(dir.path(), seed) {
+        let case = match make_case(dir.path(), seed, replay.is_some()) {
             Ok(c) => c,
             Err(e) => {
                 println!("{seed:>9} the bench refused the case: {e}");
