@@ -22,7 +22,9 @@
 //! - **moved** channels: those the hidden causes move, i.e. on which the noise-free run
 //!   of the bench differs from the noise-free run of the same test with nothing hidden
 //!   (no effects, maps as identified) by at least 1 % of the channel's span (RMS; the
-//!   scenario generator's rule, `scenario::is_moved`);
+//!   scenario generator's rule, `scenario::is_moved`), or by enough to show above the
+//!   floor (RMS change > 0.663x the floor: without the causes the twin would be above
+//!   1.2x it, [`VISIBLE`]);
 //! - **honest**: every moved channel ends within 1.2x its floor and no other channel is
 //!   made worse than 1.15x; or the loop ends "unexplained"/"partial" located on a moved
 //!   channel, having made no channel worse than 1.15x;
@@ -33,7 +35,8 @@
 //!   exactly (`PERTURBED_TWIN`: a bench whose SuT inertia is 8 % high has
 //!   `inertia_scale.sut = 1.08`); the figure counting only the hidden effects is
 //!   printed too;
-//! - **found**: a hidden library effect that moves a channel is in the final file; its
+//! - **found**: a hidden library effect that moves a channel of the scenario's run (the
+//!   truth file's `moves`, [`excited_ids`]) is in the final file; its
 //!   95 % interval, in the round that first named it, holds the truth (coverage).
 //!
 //! Seeds: the proof uses seeds from 1,000,000 on, never used while developing (tuning
@@ -91,7 +94,7 @@ struct Outcome {
     false_claim: Vec<String>,
     /// The same counting only the hidden effects as the truth (not the perturbation).
     false_claim_strict: Vec<String>,
-    /// Hidden library effects that move a channel: (id, found).
+    /// Hidden library effects that move a channel of the run ([`excited_ids`]): (id, found).
     library: Vec<(String, bool)>,
     /// Coverage of the truth by the 95 % interval: (inside, total).
     coverage: (usize, usize),
@@ -265,7 +268,9 @@ fn blind_loop(dir: &Path, c: &Case) -> Result<(Vec<Value>, Added), String> {
         a.extend(added.flags());
         let kept = dir.join(format!("r{k}.json"));
         let text = match c.replay {
-            true => std::fs::read_to_string(&kept).map_err(|e| format!("--replay: {}: {e}", kept.display()))?,
+            true => {
+                std::fs::read_to_string(&kept).map_err(|e| format!("--replay: {}: {e}", kept.display()))?
+            }
             false => simrod(dir, &a)?,
         };
         let j: Value = serde_json::from_str(&text).map_err(|e| e.to_string())?;
@@ -327,6 +332,26 @@ fn perturbed_ids(dir: &Path) -> BTreeSet<String> {
         .filter(|(item, _)| names.iter().any(|n| n.starts_with(item)))
         .map(|(_, fx)| fx.to_string())
         .collect()
+}
+
+/// The hidden effects the truth file says move a channel of the scenario's own run (the
+/// generator's 1 %-of-span rule, `moves`): the issue counts effects "present and
+/// excited"; one that moves nothing there (a backlash the run never crosses) is not
+/// counted as found or missed. A campaign's other runs have no truth file: an effect
+/// excited only there is not counted either.
+fn excited_ids(dir: &Path) -> BTreeSet<String> {
+    let text = std::fs::read_to_string(dir.join("exact0.truth.toml")).unwrap_or_default();
+    let truth: toml::Value = toml::from_str(&text).unwrap_or(toml::Value::Table(Default::default()));
+    truth
+        .get("effect")
+        .and_then(|e| e.as_array())
+        .map(|a| {
+            a.iter()
+                .filter(|e| e.get("moves").and_then(|m| m.as_array()).is_some_and(|m| !m.is_empty()))
+                .filter_map(|e| e.get("id")?.as_str().map(str::to_owned))
+                .collect()
+        })
+        .unwrap_or_default()
 }
 
 /// Effect ids in an effect file.
@@ -419,12 +444,13 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
     };
     let (false_claim, false_claim_strict) = (unjustified(&truth), unjustified(&hidden));
     let mut coverage = (0, 0);
+    let excited = excited_ids(dir);
     let library: Vec<(String, bool)> = c
         .scenario
         .picks
         .iter()
         .filter_map(|p| match p {
-            Pick::Library { id, param, value } => Some((id, param, value)),
+            Pick::Library { id, param, value } if excited.contains(*id) => Some((id, param, value)),
             _ => None,
         })
         .map(|(id, param, value)| {
