@@ -47,7 +47,9 @@ How the diagnosis works:
   effect is scored by how much of the error above noise its parameters remove (linear
   prediction), the leaders are refitted on the simulator (confirmed), and their parameters'
   95 % intervals come from a sandwich covariance of the fit whose long-run (autocorrelated)
-  residual variance uses a Bartlett taper, so it is never negative. Effects whose predicted
+  residual variance uses a Bartlett taper, so it is never negative, widened to how far the
+  estimate moves when one run of a campaign (a fifth of a single run) is left out, which
+  shows a bias the rest of the model causes in one region. Effects whose predicted
   residual shapes coincide are reported as confounded, with the built-in profile that best
   separates them.
   Effects are selected as a set: forward steps on the linearised model, each effect kept

@@ -12,7 +12,8 @@
 //! 4. [`refit`](super::refit): Levenberg–Marquardt refit of the leaders on the real
 //!    simulator; the error it removes, measured, not predicted.
 //! 5. [`uncertainty`](super::uncertainty): a sandwich (HAC) covariance with a positive
-//!    semi-definite (Bartlett-tapered) noise correlation.
+//!    semi-definite (Bartlett-tapered) noise correlation, widened to the spread of the
+//!    estimates with one held-out fold left out (fold jackknife).
 //! 6. [`confounding`](super::confounding): candidates whose predicted residual shapes
 //!    nearly coincide, and the profile that best separates them.
 //! 7. [`verdict`](super::verdict): missing, nothing missing, partial or unexplained.
@@ -153,10 +154,11 @@ pub struct FittedParam {
     pub value: f64,
     /// Value before the fit (neutral or current).
     pub start: f64,
-    /// Standard deviation from the sandwich covariance; `f64::INFINITY` when the run does
-    /// not determine the parameter; `NaN` when not refitted.
+    /// Standard deviation (the larger of the sandwich's and the fold jackknife's,
+    /// `uncertainty`); `f64::INFINITY` when the run does not determine the parameter;
+    /// `NaN` when not refitted.
     pub std: f64,
-    /// 95 % interval (value ± 1.96 std, clipped to bounds).
+    /// 95 % interval (value ± 1.96 std, clipped to bounds; NaN when not refitted).
     pub ci95: (f64, f64),
     /// Unit.
     pub unit: &'static str,

@@ -103,7 +103,8 @@ fn moved(s: &Sensitivities, ix: &[usize]) -> Vec<usize> {
     (0..per.len()).filter(|&c| per[c] >= MOVES_SHARE * total).collect()
 }
 
-/// The linear fit's values, not yet with an uncertainty (that needs the refit).
+/// The linear fit's values, not yet with an uncertainty (that needs the refit): σ and
+/// the interval are NaN (null in the JSON), never a zero-width "95 % interval".
 fn fitted_params(s: &Sensitivities, ix: &[usize], th: &[f64]) -> Vec<FittedParam> {
     ix.iter()
         .zip(th)
@@ -114,7 +115,7 @@ fn fitted_params(s: &Sensitivities, ix: &[usize], th: &[f64]) -> Vec<FittedParam
                 value: v,
                 start: s.starts[i],
                 std: f64::NAN,
-                ci95: (v, v),
+                ci95: (f64::NAN, f64::NAN),
                 unit: s.specs[i].unit,
             }
         })

@@ -462,7 +462,8 @@ mod tests {
         let r = gaussian(51, m);
         let jac = vec![vec![x.clone()]];
         let s0 = sandwich_std(&[1.0], std::slice::from_ref(&r), &jac, 50, 100)[0];
-        let sd = fold_jackknife_std(&[1.0], std::slice::from_ref(&r), &jac, &folds).expect("four folds can go")[0];
+        let sd =
+            fold_jackknife_std(&[1.0], std::slice::from_ref(&r), &jac, &folds).expect("four folds can go")[0];
         assert!(sd.is_finite() && sd < 3.0 * s0, "jackknife {sd} vs sandwich {s0}");
         let two: Vec<usize> = (0..m).map(|t| t * 2 / m).collect();
         assert!(fold_jackknife_std(&[1.0], &[r], &jac, &two).is_none());
