@@ -267,11 +267,10 @@ fn blind_loop(dir: &Path, c: &Case) -> Result<(Vec<Value>, Added), String> {
         a.extend(strings(&["--json", "--write-effects", &out, "--write-data", &data]));
         a.extend(added.flags());
         let kept = dir.join(format!("r{k}.json"));
-        let text = match c.replay {
-            true => {
-                std::fs::read_to_string(&kept).map_err(|e| format!("--replay: {}: {e}", kept.display()))?
-            }
-            false => simrod(dir, &a)?,
+        let text = if c.replay {
+            std::fs::read_to_string(&kept).map_err(|e| format!("--replay: {}: {e}", kept.display()))?
+        } else {
+            simrod(dir, &a)?
         };
         let j: Value = serde_json::from_str(&text).map_err(|e| e.to_string())?;
         let kind = j["kind"].as_str().unwrap_or("").to_owned();
@@ -318,10 +317,15 @@ const PERTURBED_TWIN: [(&str, &str); 9] = [
     ("ident.", "inverter_rate_scale"),
 ];
 
-/// The twin effects the truth file's perturbation justifies ([`PERTURBED_TWIN`]).
-fn perturbed_ids(dir: &Path) -> BTreeSet<String> {
+/// The scenario run's truth file (`exact0.truth.toml`, written by `bench --truth`);
+/// an empty table when it is missing or unreadable (nothing perturbed, nothing excited).
+fn truth_file(dir: &Path) -> toml::Value {
     let text = std::fs::read_to_string(dir.join("exact0.truth.toml")).unwrap_or_default();
-    let truth: toml::Value = toml::from_str(&text).unwrap_or(toml::Value::Table(Default::default()));
+    toml::from_str(&text).unwrap_or(toml::Value::Table(Default::default()))
+}
+
+/// The twin effects the truth file's perturbation justifies ([`PERTURBED_TWIN`]).
+fn perturbed_ids(truth: &toml::Value) -> BTreeSet<String> {
     let names: Vec<String> = truth
         .get("perturbation")
         .and_then(|p| p.as_array())
@@ -339,9 +343,7 @@ fn perturbed_ids(dir: &Path) -> BTreeSet<String> {
 /// excited"; one that moves nothing there (a backlash the run never crosses) is not
 /// counted as found or missed. A campaign's other runs have no truth file: an effect
 /// excited only there is not counted either.
-fn excited_ids(dir: &Path) -> BTreeSet<String> {
-    let text = std::fs::read_to_string(dir.join("exact0.truth.toml")).unwrap_or_default();
-    let truth: toml::Value = toml::from_str(&text).unwrap_or(toml::Value::Table(Default::default()));
+fn excited_ids(truth: &toml::Value) -> BTreeSet<String> {
     truth
         .get("effect")
         .and_then(|e| e.as_array())
@@ -433,7 +435,8 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         || (matches!(kind.as_str(), "unexplained" | "partial") && located_on_moved && !worse);
     let hidden = truth_ids(&c.scenario);
     let mut truth = hidden.clone();
-    truth.extend(perturbed_ids(dir));
+    let truth_toml = truth_file(dir);
+    truth.extend(perturbed_ids(&truth_toml));
     let claimed = ids_in(dir, added.effects.as_deref());
     let unjustified = |t: &BTreeSet<String>| -> Vec<String> {
         if any_moved_high {
@@ -444,7 +447,7 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
     };
     let (false_claim, false_claim_strict) = (unjustified(&truth), unjustified(&hidden));
     let mut coverage = (0, 0);
-    let excited = excited_ids(dir);
+    let excited = excited_ids(&truth_toml);
     let library: Vec<(String, bool)> = c
         .scenario
         .picks

@@ -109,38 +109,55 @@ pub(super) fn check_shape(p: &Prepared, y: &[Vec<f32>]) -> Result<(), String> {
 
 /// Per channel `c`: `J_c' w_c J_c` (symmetric, full) and `J_c' w_c r_c`.
 fn channel_normal_equations(p: &Prepared, sens: &[Vec<Vec<f64>>]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
-    normal_equations_by(p, sens, p.weights.len(), |c, _| c)
+    normal_equations_by(&p.weights, sens, |c, k| base_residual(p, c, k), p.weights.len(), |c, _| c)
 }
 
 /// Per held-out fold: `J'WJ` (full) and `J'W r` over all channels.
 fn fold_normal_equations(p: &Prepared, sens: &[Vec<Vec<f64>>]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
     let nf = p.folds.iter().max().map_or(1, |m| m + 1);
-    normal_equations_by(p, sens, nf, |_, k| p.folds.get(k).copied().unwrap_or(0))
+    normal_equations_by(
+        &p.weights,
+        sens,
+        |c, k| base_residual(p, c, k),
+        nf,
+        |_, k| p.folds.get(k).copied().unwrap_or(0),
+    )
+}
+
+/// The current model's residual on channel `c` at fit sample `k`.
+fn base_residual(p: &Prepared, c: usize, k: usize) -> f64 {
+    let t = p.idx[k];
+    p.meas[c][t] - p.base[c][t]
 }
 
 /// `J'WJ` (symmetric, full) and `J'W r` summed into `n` parts, the term of channel `c`
-/// at fit sample `k` going to part `part(c, k)`.
-fn normal_equations_by(
-    p: &Prepared,
-    sens: &[Vec<Vec<f64>>],
+/// at fit sample `k` going to part `part(c, k)`: `weights[c]` is channel `c`'s `1/σ²`,
+/// `jac[i][c][k]` the Jacobian, `resid(c, k)` the residual. Shared by the linearised
+/// fits (on the sensitivities) and the fold jackknife (on a refit's Jacobian).
+pub(super) fn normal_equations_by(
+    weights: &[f64],
+    jac: &[Vec<Vec<f64>>],
+    resid: impl Fn(usize, usize) -> f64,
     n: usize,
     part: impl Fn(usize, usize) -> usize,
 ) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
-    let np = sens.len();
+    let np = jac.len();
     let mut g = vec![vec![0.0; np * np]; n];
     let mut b = vec![vec![0.0; np]; n];
-    for (c, w) in p.weights.iter().enumerate() {
-        for (k, &t) in p.idx.iter().enumerate() {
+    for (c, w) in weights.iter().enumerate() {
+        let samples = jac.first().map_or(0, |j| j[c].len());
+        #[allow(clippy::needless_range_loop)] // k indexes every parameter's column alike
+        for k in 0..samples {
             let q = part(c, k).min(n - 1);
-            let r = p.meas[c][t] - p.base[c][t];
+            let r = resid(c, k);
             for i in 0..np {
-                let si = sens[i][c][k];
+                let si = jac[i][c][k];
                 if si == 0.0 {
                     continue;
                 }
                 b[q][i] += w * si * r;
                 for j in 0..=i {
-                    g[q][i * np + j] += w * si * sens[j][c][k];
+                    g[q][i * np + j] += w * si * jac[j][c][k];
                 }
             }
         }

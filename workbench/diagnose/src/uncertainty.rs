@@ -23,6 +23,7 @@ use super::library::ParamSpec;
 use super::linalg::{quad, solve_spd};
 use super::preparation::Prepared;
 use super::refit::Fit;
+use super::sensitivities::normal_equations_by;
 use simrod_numerics::stats::moving_mean;
 
 /// Standard deviations of a refit's parameters: the sandwich covariance (noise level over
@@ -79,18 +80,8 @@ pub(super) fn fold_jackknife_std(
 ) -> Option<Vec<f64>> {
     let n = jac.len();
     let k = folds.iter().copied().max()? + 1;
-    let (mut g, mut b) = (vec![vec![0.0; n * n]; k], vec![vec![0.0; n]; k]);
-    for (c, (&w, r)) in weights.iter().zip(resid).enumerate() {
-        for (t, (&f, rt)) in folds.iter().zip(r).enumerate() {
-            for i in 0..n {
-                let ji = jac[i][c][t];
-                b[f][i] += w * ji * rt;
-                for j in 0..n {
-                    g[f][i * n + j] += w * ji * jac[j][c][t];
-                }
-            }
-        }
-    }
+    let (g, b) =
+        normal_equations_by(weights, jac, |c, t| resid[c][t], k, |_, t| folds.get(t).copied().unwrap_or(0));
     let sum = |m: &[Vec<f64>]| (0..m[0].len()).map(|x| m.iter().map(|v| v[x]).sum()).collect::<Vec<f64>>();
     let (gt, bt) = (sum(&g), sum(&b));
     let full = solve_spd(&gt, &bt, 1e-12)?;
