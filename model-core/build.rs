@@ -47,14 +47,18 @@ fn array(name: &str, vals: &[f32]) -> String {
     format!("pub static {name}: [f32; {}] = [{}];\n", vals.len(), body.join(", "))
 }
 
-/// The bits of `v` in the fixed-point format `Fx` (I32F32: the value times 2^32), rounded
-/// to the nearest, ties to even (exact in f64: an f32 times 2^32 is an f64).
-fn fx_bits(v: f32) -> i64 {
-    let y = f64::from(v) * 4_294_967_296.0;
-    assert!(y.abs() < 9.2e18, "{v} is beyond the fixed-point range (±2^31)");
+/// The bits of `v` in the fixed-point signal format `Fx` (I17F15: the value times 2^15),
+/// rounded to the nearest, ties to even, as `Fx::lit` rounds (exact in f64: an f32 times
+/// 2^15 is an f64). A value beyond the format's range (±2^16) fails the build.
+fn fx_bits(v: f32) -> i32 {
+    let y = f64::from(v) * 32_768.0;
     let r = y.round();
     let r = if (r - y).abs() == 0.5 && r % 2.0 != 0.0 { r - y.signum() } else { r };
-    r as i64
+    assert!(
+        r >= f64::from(i32::MIN) && r <= f64::from(i32::MAX),
+        "{v} is beyond the fixed-point range (±2^16)"
+    );
+    r as i32
 }
 
 fn array_fx(name: &str, vals: &[f32]) -> String {

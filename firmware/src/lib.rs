@@ -60,7 +60,7 @@ pub const TRACE_MAGIC: [u8; 8] = protocol::TRACE_MAGIC;
 #[cfg(feature = "fixed")]
 pub const TRACE_MAGIC: [u8; 8] = protocol::TRACE_MAGIC_FX;
 
-/// A value's little-endian bits (an f32's `to_bits`, an `Fx`'s I32F32 bits).
+/// A value's little-endian bits (an f32's `to_bits`, an `Fx`'s I17F15 bits).
 #[inline]
 pub fn value_le(v: Scalar) -> [u8; VALUE_BYTES] {
     v.to_bits().to_le_bytes()

@@ -307,9 +307,9 @@ impl Decoder {
 
 /// Start of a trace file (format version 1).
 pub const TRACE_MAGIC: [u8; 8] = *b"SRTRACE1";
-/// Magic of a fixed-point build's trace: the same layout with 8-byte values (the
-/// I32F32 bits of `model_core::Fx`) instead of 4-byte f32 bits.
-pub const TRACE_MAGIC_FX: [u8; 8] = *b"SRTRACX1";
+/// Magic of a fixed-point build's trace: the same layout, each value the I17F15 bits of
+/// `model_core::Fx` instead of an f32's (version 2: version 1 carried 8-byte I32F32).
+pub const TRACE_MAGIC_FX: [u8; 8] = *b"SRTRACX2";
 /// Start of a run.
 pub const RUN_MAGIC: [u8; 4] = *b"RUN\0";
 /// End of a run, before its hash.

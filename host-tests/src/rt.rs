@@ -262,8 +262,8 @@ pub fn host_hash(which: Builtin) -> u64 {
     host_hash_on(&M4F, which)
 }
 
-/// [`host_hash`] of the twin `mcu` runs: f32 bits, or the fixed-point twin's I32F32
-/// bits (8 bytes a value).
+/// [`host_hash`] of the twin `mcu` runs: f32 bits, or the fixed-point twin's I17F15
+/// bits (4 bytes a value).
 pub fn host_hash_on(mcu: &Mcu, which: Builtin) -> u64 {
     let cfg = Config {
         dt_us: STEP_US,

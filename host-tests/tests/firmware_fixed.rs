@@ -1,6 +1,6 @@
 //! The fixed-point twin on an FPU-less Cortex-M3 (issue 15): the firmware built for
 //! `thumbv7m-none-eabi` with feature `fixed` runs its trace mode on QEMU's mps2-an385 and
-//! streams every channel's I32F32 bits of every step of every named profile with both
+//! streams every channel's I17F15 bits of every step of every named profile with both
 //! Curtis rate sets (TP07, TP11, TP14 among them); each must equal the host run of the
 //! same fixed-point twin (`Simulation::new_fx`) exactly. Integer arithmetic is exact on
 //! every core, so no tolerance.
@@ -31,7 +31,7 @@ fn m3_fixed_point_trace_matches_host_bit_for_bit() {
     let run = fw::run_qemu_on(&fw::M3_FIXED, &dir.join("simrod-trace"), &cwd, QEMU_TIMEOUT);
     let t = fw::read_trace(&cwd.join(fw::protocol::TRACE_FILE));
     eprintln!("M3 fixed-point trace run {:.1} s", run.wall.as_secs_f64());
-    assert_eq!(t.width, 8, "the M3 build must trace the fixed-point twin (8-byte values)");
+    assert!(t.fixed, "the M3 build must trace the fixed-point twin (its trace magic)");
     assert_eq!(t.n_channels, N_CHANNELS, "channel count of the trace");
     assert_eq!(t.dt_us, fw::STEP_US, "step of the trace");
     assert!(t.effects.is_empty(), "no effects compiled in");
@@ -61,8 +61,8 @@ fn m3_fixed_point_trace_matches_host_bit_for_bit() {
 const GOLDEN: &str = "golden/traces_fx.txt";
 
 const GOLDEN_HEADER: &str = "\
-# Golden hashes of the host's fixed-point traces (model_core::Fx, I32F32): FNV-1a 64 over
-# the little-endian I32F32 bits (8 bytes) of every channel (model_core::Channel::ALL order)
+# Golden hashes of the host's fixed-point traces (model_core::Fx, I17F15): FNV-1a 64 over
+# the little-endian I17F15 bits (4 bytes) of every channel (model_core::Channel::ALL order)
 # of every step. Config as golden/traces.txt: dt 1000 us, thesis parameters with the named
 # Curtis rate set, identified coupling, speed map, no effects, 24 V supply, profile scales
 # 1/1 (what the M3 firmware's trace mode runs). A mismatch means the fixed-point twin's

@@ -87,7 +87,7 @@ fn cases() -> Vec<Named> {
 }
 
 /// One step's outputs in f64: the time [µs] and every channel's value, exact for both
-/// instances (an f32, and an I32F32's bits over 2^32, convert to f64 exactly).
+/// instances (an f32, and an I17F15's bits over 2^15, convert to f64 exactly).
 type Step = (u64, [f64; N_CHANNELS]);
 
 fn f64_of<R: Real>(o: &Outputs<R>, exact: impl Fn(R) -> f64) -> Step {
@@ -105,7 +105,7 @@ fn twin(c: &Case, dt_us: u32, fixed: bool) -> Vec<Step> {
     let (cfg, profile) = setup(c, dt_us);
     if fixed {
         let sim = Simulation::new_fx(&cfg, profile, SUPPLY_V).unwrap();
-        sim.map(|o| f64_of(&o, |v| v.to_bits() as f64 / 4_294_967_296.0)).collect()
+        sim.map(|o| f64_of(&o, |v| f64::from(v.to_bits()) / 32_768.0)).collect()
     } else {
         Simulation::new(&cfg, profile, SUPPLY_V).unwrap().map(|o| f64_of(&o, f64::from)).collect()
     }

@@ -129,9 +129,9 @@ impl<R: Real> BacklashState<R> {
 
     /// Motor torque reaching the differential case [N m, axle frame].
     #[inline]
-    pub fn case_torque(&self, motor_torque_axle: R) -> R {
+    pub fn case_torque<T: Real>(&self, motor_torque_axle: T) -> T {
         if self.free {
-            R::ZERO
+            T::ZERO
         } else {
             motor_torque_axle
         }

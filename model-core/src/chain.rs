@@ -62,10 +62,12 @@ struct Slots {
 
 /// The chain's coefficients, fixed at construction.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Chain<R = f32> {
+pub struct Chain<R: Real = f32> {
     gain: [R; N_MEASURED],
     offset: [R; N_MEASURED],
-    lag: [Option<Lag<R>>; N_MEASURED],
+    /// In the wide format: a lag's weights are as small as the step over its time
+    /// constant.
+    lag: [Option<Lag<R::Wide>>; N_MEASURED],
     delay: [Slots; N_MEASURED],
     /// Some channel has a lag or a delay (else the step is a calibration only).
     dynamic: bool,
@@ -76,10 +78,10 @@ pub struct Chain<R = f32> {
 
 /// What the chain remembers between steps.
 #[derive(Debug, Clone)]
-pub struct ChainState<R = f32> {
+pub struct ChainState<R: Real = f32> {
     started: bool,
-    /// Lag outputs and inputs of the last step.
-    y: [R; N_MEASURED],
+    /// Lag outputs (wide: they accumulate) and inputs of the last step.
+    y: [R::Wide; N_MEASURED],
     x: [R; N_MEASURED],
     /// Write positions, relative to each channel's first slot.
     pos: [u8; N_MEASURED],
@@ -90,7 +92,7 @@ impl<R: Real> Default for ChainState<R> {
     fn default() -> Self {
         Self {
             started: false,
-            y: [R::ZERO; N_MEASURED],
+            y: [R::Wide::ZERO; N_MEASURED],
             x: [R::ZERO; N_MEASURED],
             pos: [0; N_MEASURED],
             line: [R::ZERO; SENSOR_DELAY_CAPACITY],
@@ -149,11 +151,11 @@ impl<R: Real> Chain<R> {
         for (v, (lag, (y, x))) in out.iter_mut().zip(lags) {
             if let Some(lag) = lag {
                 if first {
-                    (*y, *x) = (*v, *v);
+                    (*y, *x) = (v.wide(), *v);
                 }
-                *y = lag.a * *y + lag.b * *v - lag.c * (*v - *x);
+                *y = lag.a * *y + lag.b * v.wide() - lag.c * (*v - *x).wide();
                 *x = *v;
-                *v = *y;
+                *v = R::narrow(*y);
             }
         }
         for (v, (slots, pos)) in out.iter_mut().zip(self.delay.iter().zip(s.pos.iter_mut())) {

@@ -9,55 +9,57 @@
 use crate::num::{clamp, Real};
 use crate::params::Params;
 
-/// Controller coefficients, fixed at construction.
+/// Controller coefficients, fixed at construction. The proportional gain acts on a
+/// signal; the others are in the wide format (`Real::Wide`: the integral and the
+/// derivative's filter accumulate over steps, and the step itself is small).
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct PidConfig<R = f32> {
+pub struct PidConfig<R: Real = f32> {
     kp: R,
-    ki: R,
-    kd: R,
+    ki: R::Wide,
+    kd: R::Wide,
     /// Weight of the derivative's first-order filter, `dt / (tau + dt)`.
-    d_weight: R,
+    d_weight: R::Wide,
     /// [s] step.
-    dt: R,
-    torque_max_nm: R,
-    power_max_w: R,
+    dt: R::Wide,
+    torque_max_nm: R::Wide,
+    power_max_w: R::Wide,
 }
 
 impl<R: Real> PidConfig<R> {
     /// Coefficients for parameters `p` at step `dt` [s]. The filter weight is computed
     /// here once, with the operations the step used to repeat, so the bits are the same.
-    pub fn new(p: &Params<R>, dt: R) -> Self {
+    pub fn new(p: &Params, dt: R::Wide) -> Self {
+        let w = <R::Wide as Real>::lit;
         Self {
-            kp: p.pid_kp,
-            ki: p.pid_ki,
-            kd: p.pid_kd,
-            d_weight: dt / (p.pid_d_filter_s + dt),
+            kp: R::lit(p.pid_kp),
+            ki: w(p.pid_ki),
+            kd: w(p.pid_kd),
+            d_weight: dt / (w(p.pid_d_filter_s) + dt),
             dt,
-            torque_max_nm: p.motor_torque_max_nm,
-            power_max_w: p.motor_power_max_w,
+            torque_max_nm: w(p.motor_torque_max_nm),
+            power_max_w: w(p.motor_power_max_w),
         }
     }
 
     /// Torque limit at a motor speed [rad/s] (see [`torque_limit`]).
     #[inline]
-    fn limit(&self, speed: R) -> R {
+    fn limit(&self, speed: R::Wide) -> R::Wide {
         limit(self.torque_max_nm, self.power_max_w, speed)
     }
 }
 
-/// Controller state.
+/// Controller state: the integral and the derivative's filter in the wide format, the
+/// last measured speed a signal.
 #[derive(Debug, Clone, Copy)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct PidState<R = f32> {
-    integ: R,
-    d_filt: R,
+pub struct PidState<R: Real = f32> {
+    integ: R::Wide,
+    d_filt: R::Wide,
     prev_meas: R,
 }
 
 impl<R: Real> Default for PidState<R> {
     fn default() -> Self {
-        Self { integ: R::ZERO, d_filt: R::ZERO, prev_meas: R::ZERO }
+        Self { integ: R::Wide::ZERO, d_filt: R::Wide::ZERO, prev_meas: R::ZERO }
     }
 }
 
@@ -66,16 +68,16 @@ impl<R: Real> PidState<R> {
     pub fn update(&mut self, c: &PidConfig<R>, cmd: R, meas: R) -> R {
         let e = cmd - meas;
         // Derivative on measurement through a first-order filter (no kick on steps).
-        let raw_d = (meas - self.prev_meas) / c.dt;
+        let raw_d = (meas - self.prev_meas).wide() / c.dt;
         self.prev_meas = meas;
         self.d_filt += c.d_weight * (raw_d - self.d_filt);
-        let lim = c.limit(meas);
-        let unsat = c.kp * e + self.integ - c.kd * self.d_filt;
+        let lim = c.limit(meas.wide());
+        let unsat = (c.kp * e).wide() + self.integ - c.kd * self.d_filt;
         let pushing_out = (unsat > lim && e > R::ZERO) || (unsat < -lim && e < R::ZERO);
         if !pushing_out {
-            self.integ = clamp(self.integ + c.ki * e * c.dt, -lim, lim);
+            self.integ = clamp(self.integ + c.ki * e.wide() * c.dt, -lim, lim);
         }
-        clamp(unsat, -lim, lim)
+        R::narrow(clamp(unsat, -lim, lim))
     }
 }
 
@@ -109,7 +111,7 @@ mod tests {
     fn hoisted_filter_weight_is_bit_identical() {
         let p = Params { pid_kd: 0.05, pid_d_filter_s: 0.003, ..Params::default() };
         for dt in [1e-3f32, 1e-4, 3.7e-5] {
-            let c = PidConfig::new(&p, dt);
+            let c = PidConfig::<f32>::new(&p, dt);
             let mut s = PidState::default();
             let (mut integ, mut d_filt, mut prev) = (0.0f32, 0.0f32, 0.0f32);
             for k in 0..2000 {

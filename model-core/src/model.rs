@@ -126,21 +126,23 @@ struct StepSignals<R> {
 
 /// Everything the step reads but never changes, computed once at construction.
 #[derive(Debug, Clone)]
-struct Coeffs<R> {
+struct Coeffs<R: Real> {
     /// All 2-D maps share one grid: locate each set point once per step.
     shared_grid: bool,
     /// The parameters in the step's scalar (for f32 the values given).
     p: Params<R>,
     mode: SpeedTarget,
     dt_us: u32,
-    dt: R,
+    /// [s] the step, wide (a signal's resolution would not hold it).
+    dt: R::Wide,
     side: [SideParams; 2],
-    disc: [SideDisc<R>; 2],
+    /// The drivetrain's exact discretization, wide (coefficients from 1e-5 to 1.2e4).
+    disc: [SideDisc<R::Wide>; 2],
     /// Discretization with the motor share removed (gears apart); only with backlash.
-    disc_free: [SideDisc<R>; 2],
+    disc_free: [SideDisc<R::Wide>; 2],
     pid: PidConfig<R>,
     delay: Delay,
-    backlash: Backlash<R>,
+    backlash: Backlash<R::Wide>,
     /// Each measured channel's sensor, amplifier and acquisition.
     chain: Chain<R>,
     /// The constants and effect parameters the step reads, in its scalar.
@@ -150,8 +152,16 @@ struct Coeffs<R> {
 /// Every constant and effect parameter the step reads, in the step's scalar, converted
 /// once at construction (for f32 the values themselves, so the same bits).
 #[derive(Debug, Clone, Copy)]
-struct StepConsts<R> {
+struct StepConsts<R: Real> {
     half: R,
+    /// 0.5 and [rpm per rad/s], wide, for the drivetrain's state.
+    half_w: R::Wide,
+    rpm_w: R::Wide,
+    /// [rad/s per rpm], wide (a signal's resolution is 1.5e-4 of it).
+    rad_s_per_rpm_w: R::Wide,
+    /// [W] the power rate limiters' largest change in one step (rate times step).
+    sut_rate_step: R,
+    load_rate_step: R,
     two: R,
     hundred: R,
     /// [rpm per rad/s] and its inverse.
@@ -172,27 +182,30 @@ struct StepConsts<R> {
     supply_r: R,
     /// [ohm] connector resistance.
     r_conn: R,
-    /// [N m/rad], [N m s/rad] flange stiffness and damping per side, for its torque.
-    k_f: [R; 2],
-    c_f: [R; 2],
+    /// [N m/rad], [N m s/rad] flange stiffness and damping per side, for its torque
+    /// (wide: the stiffness is 3.5e5, the twist 1e-3 rad).
+    k_f: [R::Wide; 2],
+    c_f: [R::Wide; 2],
 }
 
 /// Everything the step changes: one fixed-size struct, no heap.
 #[derive(Debug, Clone)]
-struct State<R> {
-    x: [[R; NS]; 2],
+struct State<R: Real> {
+    /// The drivetrain's state, wide.
+    x: [[R::Wide; NS]; 2],
     /// Low parts of the compensated state (see `drivetrain`).
-    x_lo: [[R; NS]; 2],
+    x_lo: [[R::Wide; NS]; 2],
     pid: PidState<R>,
-    cmd_rpm: R,
+    /// [rpm] the ramped speed command, wide (a step's change is 1e-2 rpm at 10 µs).
+    cmd_rpm: R::Wide,
     /// Low part of the compensated speed command.
-    cmd_lo: R,
+    cmd_lo: R::Wide,
     p_sut: RateLimiter<R>,
     /// The mapped mechanical power, through the same rate limiter as the SuT power map.
     p_mech_ref: RateLimiter<R>,
     p_load: [RateLimiter<R>; 2],
     delay: DelayState<R>,
-    backlash: BacklashState<R>,
+    backlash: BacklashState<R::Wide>,
     /// [V] busbar voltage of the last step (`supply_resistance`; 0 before the first).
     v_b: R,
     t_us: u64,
@@ -203,7 +216,7 @@ struct State<R> {
 
 /// The twin: maps, coefficients and state.
 #[derive(Debug, Clone)]
-pub struct Model<'a, R = f32> {
+pub struct Model<'a, R: Real = f32> {
     maps: Maps<'a, R>,
     c: Coeffs<R>,
     s: State<R>,
@@ -299,7 +312,7 @@ impl<'a, R: Real> Model<'a, R> {
             c_c,
         };
         let side = [mk(0), mk(1)];
-        let disc: [SideDisc<R>; 2] = [SideDisc::new(&side[0], dt_s), SideDisc::new(&side[1], dt_s)];
+        let disc: [SideDisc<R::Wide>; 2] = [SideDisc::new(&side[0], dt_s), SideDisc::new(&side[1], dt_s)];
         // Backlash: the motor share of the SuT inertia can part from the differential.
         let gap_rad = fx.gear_backlash.backlash_deg * (core::f32::consts::PI / 180.0);
         let j_m = p.sut_motor_inertia_share * p.sut_inertia * fx.inertia_scale[0];
@@ -310,12 +323,18 @@ impl<'a, R: Real> Model<'a, R> {
         } else {
             disc
         };
-        let backlash = Backlash::new(R::lit(gap_rad), R::lit(j_m), R::lit(j_side_free));
-        let dt = R::from_f64(dt_s);
+        let w = <R::Wide as Real>::lit;
+        let backlash = Backlash::new(w(gap_rad), w(j_m), w(j_side_free));
+        let dt = R::Wide::from_f64(dt_s);
         let r_conn = fx.connector_resistance.unwrap_or(p.connector_resistance);
         let pr: Params<R> = p.to();
         let k = StepConsts {
             half: R::lit(0.5),
+            half_w: w(0.5),
+            rpm_w: w(RPM_PER_RAD_S),
+            rad_s_per_rpm_w: w(RAD_S_PER_RPM),
+            sut_rate_step: R::narrow(w(p.sut_power_rate_w_per_s) * dt),
+            load_rate_step: R::narrow(w(p.load_power_rate_w_per_s) * dt),
             two: R::lit(2.0),
             hundred: R::lit(100.0),
             rpm_per_rad_s: R::lit(RPM_PER_RAD_S),
@@ -328,8 +347,8 @@ impl<'a, R: Real> Model<'a, R> {
             regen_loss: R::lit(fx.regen_loss),
             supply_r: R::lit(fx.supply_resistance),
             r_conn: R::lit(r_conn),
-            k_f: side.map(|s| R::lit(s.k_f)),
-            c_f: side.map(|s| R::lit(s.c_f)),
+            k_f: side.map(|s| w(s.k_f)),
+            c_f: side.map(|s| w(s.c_f)),
         };
         let c = Coeffs {
             shared_grid: maps.shared_2d_grid(),
@@ -340,18 +359,18 @@ impl<'a, R: Real> Model<'a, R> {
             side,
             disc,
             disc_free,
-            pid: PidConfig::new(&pr, dt),
+            pid: PidConfig::new(p, dt),
             delay: Delay::new(fx.controller_delay_s, dt_s),
             backlash,
             chain: Chain::new(fx.sensor_gain, fx.sensor_offset, fx.sensor_lag_s, fx.sensor_delay_s, dt_s),
             k,
         };
         let s = State {
-            x: [[R::ZERO; NS]; 2],
-            x_lo: [[R::ZERO; NS]; 2],
+            x: [[R::Wide::ZERO; NS]; 2],
+            x_lo: [[R::Wide::ZERO; NS]; 2],
             pid: PidState::default(),
-            cmd_rpm: R::ZERO,
-            cmd_lo: R::ZERO,
+            cmd_rpm: R::Wide::ZERO,
+            cmd_lo: R::Wide::ZERO,
             p_sut: RateLimiter::default(),
             p_mech_ref: RateLimiter::default(),
             p_load: [RateLimiter::default(); 2],
@@ -441,15 +460,18 @@ impl<'a, R: Real> Model<'a, R> {
         probe!(self, RateLogic);
         let n = p.sut_gear_ratio;
         let [xl, xr] = s.x;
-        let w_case = half * (xl[W_A] + xr[W_A]);
-        let w_motor = n * s.backlash.motor_speed(w_case);
+        let w_case_w = k.half_w * (xl[W_A] + xr[W_A]);
+        let w_case = R::narrow(w_case_w);
+        let w_motor = n * R::narrow(s.backlash.motor_speed(w_case_w));
+        let cmd = R::narrow(s.cmd_rpm);
         let (rate, case) =
-            curtis::ramp_rate(&p, &k.rate_scale, mapped, target, s.cmd_rpm, w_motor * k.rpm_per_rad_s);
-        (s.cmd_rpm, s.cmd_lo) = curtis::advance_compensated(s.cmd_rpm, s.cmd_lo, target, rate, dt);
+            curtis::ramp_rate(&p, &k.rate_scale, mapped, target, cmd, w_motor * k.rpm_per_rad_s);
+        (s.cmd_rpm, s.cmd_lo) =
+            curtis::advance_compensated(s.cmd_rpm, s.cmd_lo, target.wide(), rate.wide(), dt);
 
         // Speed controller -> motor torque -> gearbox -> open differential.
         probe!(self, Controller);
-        let t_motor = s.pid.update(&c.pid, s.cmd_rpm * k.rad_s_per_rpm, w_motor);
+        let t_motor = s.pid.update(&c.pid, R::narrow(s.cmd_rpm * k.rad_s_per_rpm_w), w_motor);
         let t_diff = k.diff_coulomb * clamp(w_case / k.diff_eps, -one, one) + k.diff_viscous * w_case;
         let t_in = half * (s.backlash.case_torque(n * t_motor) - t_diff);
         let discs = if s.backlash.is_free() { &c.disc_free } else { &c.disc };
@@ -465,7 +487,7 @@ impl<'a, R: Real> Model<'a, R> {
         for (i, (((x, x_lo), disc), tl)) in
             s.x.iter_mut().zip(s.x_lo.iter_mut()).zip(discs.iter()).zip(t_load.iter_mut()).enumerate()
         {
-            let w_l = x[W_L];
+            let w_l = R::narrow(x[W_L]);
             let w_rpm = w_l * k.rpm_per_rad_s;
             probe!(self, Tables);
             let hint = &mut s.hints.friction[i];
@@ -491,11 +513,11 @@ impl<'a, R: Real> Model<'a, R> {
                 t_map * drive_dir * clamp((p.load_no_load_rpm - along) / span, zero, one)
             };
             p_mapped_mech += (fric_nominal + *tl) * w_l;
-            disc.step_compensated(x, x_lo, [t_in, fric + *tl]);
+            disc.step_compensated(x, x_lo, [t_in.wide(), (fric + *tl).wide()]);
         }
 
         if c.backlash.enabled() {
-            c.backlash.after_step(&mut s.backlash, n * t_motor, w_case, &mut s.x, dt);
+            c.backlash.after_step(&mut s.backlash, (n * t_motor).wide(), w_case_w, &mut s.x, dt);
         }
 
         // Electrics: maps -> rate limiters -> currents; supply current is the sum.
@@ -526,17 +548,17 @@ impl<'a, R: Real> Model<'a, R> {
         // the thesis model, so the identified map is reproduced exactly there.
         // The reference moves through the map's rate limiter: a load step changes the map
         // and its mechanical counterpart together, not one instantly and one slowly.
-        let p_ref = s.p_mech_ref.update(p_mapped_mech, p.sut_power_rate_w_per_s * dt);
+        let p_ref = s.p_mech_ref.update(p_mapped_mech, k.sut_rate_step);
         let p_unmapped = t_motor * w_motor - p_ref;
         let p_unmapped_el = if p_unmapped > zero {
             p_unmapped / p.sut_drive_efficiency
         } else {
             p_unmapped * p.sut_drive_efficiency
         };
-        let p_sut = regen(s.p_sut.update(sut_map, p.sut_power_rate_w_per_s * dt) + p_unmapped_el);
+        let p_sut = regen(s.p_sut.update(sut_map, k.sut_rate_step) + p_unmapped_el);
         let mut p_ld = [zero; 2];
         for ((pl, lim), m) in p_ld.iter_mut().zip(s.p_load.iter_mut()).zip(load_map) {
-            *pl = regen(lim.update(m, p.load_power_rate_w_per_s * dt));
+            *pl = regen(lim.update(m, k.load_rate_step));
         }
         let v_s = R::lit(inp.supply_v);
         let r_conn = k.r_conn;
@@ -591,8 +613,10 @@ impl<'a, R: Real> Model<'a, R> {
         let k = &self.c.k;
         let (half, rpm) = (k.half, k.rpm_per_rad_s);
         let [xl, xr] = self.s.x;
-        let flange = |x: &[R; NS], i: usize| k.k_f[i] * x[PHI_AF] + k.c_f[i] * (x[W_A] - x[W_F]);
-        let motor_rpm = p.sut_gear_ratio * half * (xl[W_A] + xr[W_A]) * rpm;
+        let flange =
+            |x: &[R::Wide; NS], i: usize| R::narrow(k.k_f[i] * x[PHI_AF] + k.c_f[i] * (x[W_A] - x[W_F]));
+        let motor_rpm = R::narrow((p.sut_gear_ratio * half).wide() * (xl[W_A] + xr[W_A]) * k.rpm_w);
+        let speed = |w: R::Wide| R::narrow(w) * rpm;
         let i_xlml = half * i_ld[0];
         // The physical values of the measured channels, in `MEASURED` order.
         let raw = [
@@ -600,9 +624,9 @@ impl<'a, R: Real> Model<'a, R> {
             motor_rpm,
             flange(&xl, 0),
             flange(&xr, 1),
-            xl[W_F] * rpm,
-            xr[W_F] * rpm,
-            xr[W_L] * rpm,
+            speed(xl[W_F]),
+            speed(xr[W_F]),
+            speed(xr[W_L]),
             i_xlml,
             i_xlml,
             half * i_ld[1],
@@ -637,15 +661,15 @@ impl<'a, R: Real> Model<'a, R> {
         o.set(C::LoadRSp, load_sp[1]);
         o.set(C::ThrottleMapped, mapped);
         o.set(C::SpeedTarget, target);
-        o.set(C::SpeedCmd, self.s.cmd_rpm);
+        o.set(C::SpeedCmd, R::narrow(self.s.cmd_rpm));
         o.set(C::RateCase, R::from_u8(case as u8));
         o.set(C::SuTTorque, t_motor);
         o.set(C::LoadTorqueL, t_load[0]);
         o.set(C::LoadTorqueR, t_load[1]);
         o.set(C::ILmlPhase, i_phase[0]);
         o.set(C::ILmrPhase, i_phase[1]);
-        o.set(C::LoadSpeedL, xl[W_L] * rpm * p.load_gear_ratio);
-        o.set(C::LoadSpeedR, xr[W_L] * rpm * p.load_gear_ratio);
+        o.set(C::LoadSpeedL, speed(xl[W_L]) * p.load_gear_ratio);
+        o.set(C::LoadSpeedR, speed(xr[W_L]) * p.load_gear_ratio);
         o
     }
 }

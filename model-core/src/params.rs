@@ -118,12 +118,15 @@ impl RateParams {
 }
 
 /// Every scalar of the model. Defaults come from `data/parameters.toml`; units in the
-/// field docs; mechanical values in the axle frame unless named `motor`.
+/// field docs; mechanical values in the axle frame unless named `motor`. The inertias,
+/// stiffnesses and dampings are f32 in every instance: only the construction reads
+/// them (the drivetrain's discretization, in f64), never the step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Params<R = f32> {
-    /// [V/%] throttle volts per set-point percent.
-    pub throttle_volts_per_pct: R,
+pub struct Params<R: Real = f32> {
+    /// [V/%] throttle volts per set-point percent (wide: 0.05 is not a multiple of a
+    /// fixed-point signal's resolution to better than 2e-4).
+    pub throttle_volts_per_pct: R::Wide,
     /// [rpm] Max Speed Fwd / Rev (parameter approach).
     pub max_speed_rpm: [R; 2],
     /// [rpm] Typical Max Speed: rates are normalised to it.
@@ -151,21 +154,21 @@ pub struct Params<R = f32> {
     /// [-] load gearbox ratio (load motor / axle speed), reporting only.
     pub load_gear_ratio: R,
     /// [kg m^2] total SuT-side inertia, split in halves.
-    pub sut_inertia: R,
+    pub sut_inertia: f32,
     /// [-] share of the SuT inertia on the motor side of the gear mesh (backlash only).
-    pub sut_motor_inertia_share: R,
+    pub sut_motor_inertia_share: f32,
     /// [kg m^2] load inertias L, R.
-    pub load_inertia: [R; 2],
+    pub load_inertia: [f32; 2],
     /// [kg m^2] torque flange inertia.
-    pub flange_inertia: R,
+    pub flange_inertia: f32,
     /// [N m/rad] torque flange stiffness.
-    pub flange_stiffness: R,
+    pub flange_stiffness: f32,
     /// [N m s/rad] torque flange damping.
-    pub flange_damping: R,
+    pub flange_damping: f32,
     /// [N m/rad] flexible coupling stiffness.
-    pub coupling_stiffness: R,
+    pub coupling_stiffness: f32,
     /// [N m s/rad] flexible coupling damping.
-    pub coupling_damping: R,
+    pub coupling_damping: f32,
     /// [rpm] load motor shaft speed where its motoring torque has faded to zero
     /// (back-EMF reaches the supply): bounds what a motoring load can drive.
     pub load_no_load_rpm: R,
@@ -225,10 +228,11 @@ impl Params {
 }
 
 impl Params {
-    /// The same parameters in the scalar `R` (each value [`Real::lit`]; for f32 itself).
+    /// The same parameters in the scalar `R` (each value the step reads [`Real::lit`]; for
+    /// f32 itself).
     pub fn to<R: Real>(&self) -> Params<R> {
         Params {
-            throttle_volts_per_pct: R::lit(self.throttle_volts_per_pct),
+            throttle_volts_per_pct: R::Wide::lit(self.throttle_volts_per_pct),
             max_speed_rpm: [R::lit(self.max_speed_rpm[0]), R::lit(self.max_speed_rpm[1])],
             typical_max_speed_rpm: R::lit(self.typical_max_speed_rpm),
             speed_limit_rpm: [R::lit(self.speed_limit_rpm[0]), R::lit(self.speed_limit_rpm[1])],
@@ -243,14 +247,14 @@ impl Params {
             motor_power_max_w: R::lit(self.motor_power_max_w),
             sut_gear_ratio: R::lit(self.sut_gear_ratio),
             load_gear_ratio: R::lit(self.load_gear_ratio),
-            sut_inertia: R::lit(self.sut_inertia),
-            sut_motor_inertia_share: R::lit(self.sut_motor_inertia_share),
-            load_inertia: [R::lit(self.load_inertia[0]), R::lit(self.load_inertia[1])],
-            flange_inertia: R::lit(self.flange_inertia),
-            flange_stiffness: R::lit(self.flange_stiffness),
-            flange_damping: R::lit(self.flange_damping),
-            coupling_stiffness: R::lit(self.coupling_stiffness),
-            coupling_damping: R::lit(self.coupling_damping),
+            sut_inertia: self.sut_inertia,
+            sut_motor_inertia_share: self.sut_motor_inertia_share,
+            load_inertia: self.load_inertia,
+            flange_inertia: self.flange_inertia,
+            flange_stiffness: self.flange_stiffness,
+            flange_damping: self.flange_damping,
+            coupling_stiffness: self.coupling_stiffness,
+            coupling_damping: self.coupling_damping,
             load_no_load_rpm: R::lit(self.load_no_load_rpm),
             load_base_rpm: R::lit(self.load_base_rpm),
             regen_fade_rpm: R::lit(self.regen_fade_rpm),

@@ -8,7 +8,7 @@ use crate::profile::Profile;
 
 /// Model + profile + supply voltage.
 #[derive(Debug, Clone)]
-pub struct Simulation<'a, R = f32> {
+pub struct Simulation<'a, R: Real = f32> {
     model: Model<'a, R>,
     profile: Profile,
     supply_v: f32,

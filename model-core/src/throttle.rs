@@ -10,7 +10,7 @@ use crate::params::{Params, SpeedTarget};
 #[inline]
 pub fn voltage<R: Real>(p: &Params<R>, setpoint_pct: R) -> R {
     let a = if setpoint_pct < R::ZERO { -setpoint_pct } else { setpoint_pct };
-    clamp(a * p.throttle_volts_per_pct, R::ZERO, R::lit(5.0))
+    clamp(R::narrow(a.wide() * p.throttle_volts_per_pct), R::ZERO, R::lit(5.0))
 }
 
 /// Direction index of a signed quantity: 0 forward (>= 0), 1 reverse.
@@ -38,7 +38,8 @@ pub fn target_speed_rpm<R: Real>(
             t.eval_hinted(mapped_pct, hint)
         }
         SpeedTarget::Parameter => {
-            mapped_pct * R::lit(0.01) * p.max_speed_rpm.get(d).copied().unwrap_or(R::ZERO)
+            let max = p.max_speed_rpm.get(d).copied().unwrap_or(R::ZERO);
+            R::narrow(mapped_pct.wide() * R::Wide::lit(0.01) * max.wide())
         }
     };
     let mag = clamp(mag, R::ZERO, limit);

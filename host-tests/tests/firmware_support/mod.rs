@@ -239,8 +239,10 @@ pub struct Trace {
     pub dt_us: u32,
     pub effects: Vec<(String, String, f32)>,
     pub runs: Vec<TraceRun>,
-    /// Bytes of a value: 4 (f32 bits), or 8 (the fixed-point twin's I32F32 bits).
+    /// Bytes of a value: 4 (f32 bits, or the fixed-point twin's I17F15 bits).
     pub width: usize,
+    /// The values are the fixed-point twin's (the trace's magic says which).
+    pub fixed: bool,
 }
 
 /// Reads a little-endian record file front to back; a short file or a wrong magic
@@ -293,11 +295,9 @@ impl<'a> Cursor<'a> {
 pub fn read_trace(path: &Path) -> Trace {
     let bytes = fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let mut c = Cursor::new(&bytes, "trace");
-    let width = match bytes.get(..8) {
-        Some(m) if m == protocol::TRACE_MAGIC_FX => 8,
-        _ => 4,
-    };
-    c.magic(if width == 8 { &protocol::TRACE_MAGIC_FX } else { &protocol::TRACE_MAGIC }, "the trace magic");
+    let fixed = bytes.get(..8) == Some(&protocol::TRACE_MAGIC_FX[..]);
+    let width = 4;
+    c.magic(if fixed { &protocol::TRACE_MAGIC_FX } else { &protocol::TRACE_MAGIC }, "the trace magic");
     let n_channels = usize::from(c.u16());
     let dt_us = c.u32();
     let n_fx = c.u16();
@@ -336,10 +336,10 @@ pub fn read_trace(path: &Path) -> Trace {
         let hash = c.u64();
         runs.push(TraceRun { profile, rates, n_steps, records, hash });
     }
-    Trace { n_channels, dt_us, effects, runs, bytes, width }
+    Trace { n_channels, dt_us, effects, runs, bytes, width, fixed }
 }
 
-/// Step `k` of a run: `t_us` and the channel bits (4 or 8 bytes each, as a u64).
+/// Step `k` of a run: `t_us` and the channel bits (4 bytes each, as a u64).
 pub fn record(trace: &Trace, run: &TraceRun, k: usize) -> (u64, Vec<u64>) {
     let w = trace.width;
     let size = 8 + w * trace.n_channels;
@@ -361,6 +361,8 @@ pub fn record(trace: &Trace, run: &TraceRun, k: usize) -> (u64, Vec<u64>) {
 pub trait TraceValue: Copy {
     /// Bytes per value in a trace.
     const WIDTH: usize;
+    /// The fixed-point twin's values.
+    const FIXED: bool;
     /// The value's bits as the trace stores them (little-endian, zero-extended).
     fn raw(self) -> u64;
     /// Bits as read from a trace, for a message: the value and its hex.
@@ -369,6 +371,7 @@ pub trait TraceValue: Copy {
 
 impl TraceValue for f32 {
     const WIDTH: usize = 4;
+    const FIXED: bool = false;
     fn raw(self) -> u64 {
         u64::from(self.to_bits())
     }
@@ -378,12 +381,13 @@ impl TraceValue for f32 {
 }
 
 impl TraceValue for model_core::Fx {
-    const WIDTH: usize = 8;
+    const WIDTH: usize = 4;
+    const FIXED: bool = true;
     fn raw(self) -> u64 {
-        self.to_bits() as u64
+        u64::from(self.to_bits() as u32)
     }
     fn show(raw: u64) -> String {
-        format!("{} (0x{raw:016x})", model_core::Fx::from_bits(raw as i64).to_f32())
+        format!("{} (0x{raw:08x})", model_core::Fx::from_bits(raw as u32 as i32).to_f32())
     }
 }
 
@@ -405,6 +409,7 @@ fn hash_steps<R: TraceValue>(outputs: impl IntoIterator<Item = Outputs<R>>) -> (
 /// compared. Panics at the first difference with step, time, channel and both values.
 fn compare_outputs<R: TraceValue>(trace: &Trace, run: &TraceRun, label: &str, host: &[Outputs<R>]) -> usize {
     assert_eq!(trace.width, R::WIDTH, "{label}: a trace of {}-byte values", trace.width);
+    assert_eq!(trace.fixed, R::FIXED, "{label}: a fixed-point trace compared with the f32 twin or back");
     assert_eq!(
         run.n_steps as usize,
         host.len(),
@@ -450,13 +455,13 @@ pub fn host_sim_fx(which: Builtin, rates: RateSet) -> Simulation<'static, model_
     Simulation::new_fx(&config(rates, Effects::NONE), profile, SUPPLY_V).expect("valid config")
 }
 
-/// FNV-1a 64 over the little-endian I32F32 bits of every channel of every step of the
+/// FNV-1a 64 over the little-endian I17F15 bits of every channel of every step of the
 /// host's fixed-point run; the step count.
 pub fn host_hash_fx(which: Builtin, rates: RateSet) -> (u64, u32) {
     hash_steps(host_sim_fx(which, rates))
 }
 
-/// [`compare_run`] for a fixed-point trace: every channel's I32F32 bits at every step
+/// [`compare_run`] for a fixed-point trace: every channel's I17F15 bits at every step
 /// equal the host's fixed-point twin's. The number of steps compared.
 pub fn compare_run_fx(trace: &Trace, run: &TraceRun) -> usize {
     let label = format!("{} {} (fixed point)", run.profile.name(), rates_name(run.rates));
