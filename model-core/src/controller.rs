@@ -19,10 +19,13 @@ pub struct PidConfig<R: Real = f32> {
     kd: R::Wide,
     /// Weight of the derivative's first-order filter, `dt / (tau + dt)`.
     d_weight: R::Wide,
-    /// [s] step.
+    /// [s] step, and as a divisor.
     dt: R::Wide,
-    torque_max_nm: R::Wide,
-    power_max_w: R::Wide,
+    per_dt: <R::Wide as Real>::Divisor,
+    torque_max_nm: R,
+    power_max_w: R,
+    /// [N m] twice the torque limit, wide (see [`limit`]).
+    twice_torque: R::Wide,
 }
 
 impl<R: Real> PidConfig<R> {
@@ -36,15 +39,17 @@ impl<R: Real> PidConfig<R> {
             kd: w(p.pid_kd),
             d_weight: dt / (w(p.pid_d_filter_s) + dt),
             dt,
-            torque_max_nm: w(p.motor_torque_max_nm),
-            power_max_w: w(p.motor_power_max_w),
+            per_dt: R::Wide::divisor(dt),
+            torque_max_nm: R::lit(p.motor_torque_max_nm),
+            power_max_w: R::lit(p.motor_power_max_w),
+            twice_torque: w(2.0 * p.motor_torque_max_nm),
         }
     }
 
     /// Torque limit at a motor speed [rad/s] (see [`torque_limit`]).
     #[inline]
-    fn limit(&self, speed: R::Wide) -> R::Wide {
-        limit(self.torque_max_nm, self.power_max_w, speed)
+    fn limit(&self, speed: R) -> R {
+        limit(self.torque_max_nm, self.power_max_w, speed, self.twice_torque)
     }
 }
 
@@ -68,14 +73,14 @@ impl<R: Real> PidState<R> {
     pub fn update(&mut self, c: &PidConfig<R>, cmd: R, meas: R) -> R {
         let e = cmd - meas;
         // Derivative on measurement through a first-order filter (no kick on steps).
-        let raw_d = (meas - self.prev_meas).wide() / c.dt;
+        let raw_d = (meas - self.prev_meas).wide().div_by(c.per_dt);
         self.prev_meas = meas;
         self.d_filt += c.d_weight * (raw_d - self.d_filt);
-        let lim = c.limit(meas.wide());
+        let lim = c.limit(meas).wide();
         let unsat = (c.kp * e).wide() + self.integ - c.kd * self.d_filt;
         let pushing_out = (unsat > lim && e > R::ZERO) || (unsat < -lim && e < R::ZERO);
         if !pushing_out {
-            self.integ = clamp(self.integ + c.ki * e.wide() * c.dt, -lim, lim);
+            self.integ = clamp(self.integ + R::wide_mul(c.ki, e) * c.dt, -lim, lim);
         }
         R::narrow(clamp(unsat, -lim, lim))
     }
@@ -85,16 +90,18 @@ impl<R: Real> PidState<R> {
 /// base speed.
 #[inline]
 pub fn torque_limit<R: Real>(p: &Params<R>, speed: R) -> R {
-    limit(p.motor_torque_max_nm, p.motor_power_max_w, speed)
+    let t = p.motor_torque_max_nm;
+    limit(t, p.motor_power_max_w, speed, (t + t).wide())
 }
 
 #[inline]
-fn limit<R: Real>(torque_max: R, power_max: R, speed: R) -> R {
+fn limit<R: Real>(torque_max: R, power_max: R, speed: R, twice_torque: R::Wide) -> R {
     let w = if speed < R::ZERO { -speed } else { speed };
-    // Below 1e-6 of the power limit in rad/s (w 1e6 <= P) the power limit is beyond a
-    // million N m, above any torque limit, so the torque limit holds there: the same
-    // result as dividing, without a quotient beyond the fixed-point range.
-    let by_power = if w > R::ZERO && w * R::lit(1e6) > power_max { power_max / w } else { torque_max };
+    // Where w 2 T <= P the power limit P / w is at least twice the torque limit T, so T
+    // holds: the same result as dividing, without a quotient beyond a fixed-point
+    // signal's range at standstill (P / w is at most 2 T where it is taken).
+    let by_power =
+        if w > R::ZERO && w.wide() * twice_torque > power_max.wide() { power_max / w } else { torque_max };
     if by_power < torque_max {
         by_power
     } else {

@@ -152,8 +152,10 @@ impl<R: Real> SideDisc<R> {
     }
 
     /// One compensated step: `hi + lo <- Φ (hi + lo) + Γ u`, summed in a fixed order.
+    /// The state and coefficients are in `R`, the inputs `u` signals whose wide format
+    /// is `R` ([`Real::wide_mul`]: for f32 the plain product).
     #[inline]
-    pub fn step_compensated(&self, hi: &mut [R; NS], lo: &mut [R; NS], u: [R; 2]) {
+    pub fn step_compensated<N: Real<Wide = R>>(&self, hi: &mut [R; NS], lo: &mut [R; NS], u: [N; 2]) {
         let (h0, l0) = (*hi, *lo);
         for (((h, l), (drow, prow)), grow) in
             hi.iter_mut().zip(lo.iter_mut()).zip(self.dphi.iter().zip(self.phi.iter())).zip(self.gam.iter())
@@ -168,8 +170,8 @@ impl<R: Real> SideDisc<R> {
                     inc += *pij * *lj;
                 }
             }
-            inc += grow[0] * u[0];
-            inc += grow[1] * u[1];
+            inc += N::wide_mul(grow[0], u[0]);
+            inc += N::wide_mul(grow[1], u[1]);
             let (s, e) = R::two_sum(*h, inc);
             *h = s;
             *l = e;

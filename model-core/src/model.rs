@@ -13,7 +13,7 @@
 use crate::backlash::{Backlash, BacklashState};
 use crate::chain::{Chain, ChainState};
 use crate::controller::{PidConfig, PidState};
-use crate::curtis::{self, RateCase, RateScale};
+use crate::curtis::{self, Ramp, RateCase};
 use crate::data::Maps;
 use crate::delay::{Delay, DelayState};
 use crate::drivetrain::{SideDisc, SideParams, NS, PHI_AF, RAD_S_PER_RPM, RPM_PER_RAD_S, W_A, W_F, W_L};
@@ -141,6 +141,8 @@ struct Coeffs<R: Real> {
     /// Discretization with the motor share removed (gears apart); only with backlash.
     disc_free: [SideDisc<R::Wide>; 2],
     pid: PidConfig<R>,
+    /// The Curtis rate logic's coefficients.
+    ramp: Ramp<R>,
     delay: Delay,
     backlash: Backlash<R::Wide>,
     /// Each measured channel's sensor, amplifier and acquisition.
@@ -167,15 +169,15 @@ struct StepConsts<R: Real> {
     /// [rpm per rad/s] and its inverse.
     rpm_per_rad_s: R,
     rad_s_per_rpm: R,
-    /// [rad/s] [`DIFF_FRICTION_EPS`].
-    diff_eps: R,
+    /// [rad/s] [`DIFF_FRICTION_EPS`], as a divisor.
+    per_diff_eps: R::Divisor,
+    /// [-] the SuT drive's efficiency, as a divisor.
+    per_efficiency: R::Divisor,
     /// [N m], [N m s/rad] the differential's friction (effect).
     diff_coulomb: R,
     diff_viscous: R,
     /// [-] axle friction scale per side (effect).
     fric_scale: [R; 2],
-    /// [-] the Curtis rate multipliers (effect).
-    rate_scale: RateScale<R>,
     /// [-] regenerated power lost (effect).
     regen_loss: R,
     /// [ohm] the DPU's source resistance (effect; 0 off).
@@ -339,11 +341,11 @@ impl<'a, R: Real> Model<'a, R> {
             hundred: R::lit(100.0),
             rpm_per_rad_s: R::lit(RPM_PER_RAD_S),
             rad_s_per_rpm: R::lit(RAD_S_PER_RPM),
-            diff_eps: R::lit(DIFF_FRICTION_EPS),
+            per_diff_eps: R::divisor(R::lit(DIFF_FRICTION_EPS)),
+            per_efficiency: R::divisor(pr.sut_drive_efficiency),
             diff_coulomb: R::lit(fx.differential_friction.coulomb_nm),
             diff_viscous: R::lit(fx.differential_friction.viscous_nm_s),
             fric_scale: fx.axle_friction_scale.map(R::lit),
-            rate_scale: fx.inverter_rate_scale.map(|d| d.map(R::lit)),
             regen_loss: R::lit(fx.regen_loss),
             supply_r: R::lit(fx.supply_resistance),
             r_conn: R::lit(r_conn),
@@ -360,6 +362,7 @@ impl<'a, R: Real> Model<'a, R> {
             disc,
             disc_free,
             pid: PidConfig::new(p, dt),
+            ramp: Ramp::new(p, &fx.inverter_rate_scale),
             delay: Delay::new(fx.controller_delay_s, dt_s),
             backlash,
             chain: Chain::new(fx.sensor_gain, fx.sensor_offset, fx.sensor_lag_s, fx.sensor_delay_s, dt_s),
@@ -428,8 +431,8 @@ impl<'a, R: Real> Model<'a, R> {
     pub(crate) fn advance(&mut self, inp: &Inputs) -> Outputs<R> {
         probe!(self, RateLogic);
         let (c, s) = (&self.c, &mut self.s);
-        let p = c.p;
-        let k = c.k;
+        let p = &c.p;
+        let k = &c.k;
         let (zero, one, half) = (R::ZERO, R::ONE, k.half);
         let dt = c.dt;
         let finite_pct = |v: f32| {
@@ -464,15 +467,15 @@ impl<'a, R: Real> Model<'a, R> {
         let w_case = R::narrow(w_case_w);
         let w_motor = n * R::narrow(s.backlash.motor_speed(w_case_w));
         let cmd = R::narrow(s.cmd_rpm);
-        let (rate, case) =
-            curtis::ramp_rate(&p, &k.rate_scale, mapped, target, cmd, w_motor * k.rpm_per_rad_s);
+        let (rate, case) = c.ramp.rate(mapped, target, cmd, w_motor * k.rpm_per_rad_s);
         (s.cmd_rpm, s.cmd_lo) =
             curtis::advance_compensated(s.cmd_rpm, s.cmd_lo, target.wide(), rate.wide(), dt);
 
         // Speed controller -> motor torque -> gearbox -> open differential.
         probe!(self, Controller);
         let t_motor = s.pid.update(&c.pid, R::narrow(s.cmd_rpm * k.rad_s_per_rpm_w), w_motor);
-        let t_diff = k.diff_coulomb * clamp(w_case / k.diff_eps, -one, one) + k.diff_viscous * w_case;
+        let t_diff =
+            k.diff_coulomb * clamp(w_case.div_by(k.per_diff_eps), -one, one) + k.diff_viscous * w_case;
         let t_in = half * (s.backlash.case_torque(n * t_motor) - t_diff);
         let discs = if s.backlash.is_free() { &c.disc_free } else { &c.disc };
 
@@ -513,7 +516,7 @@ impl<'a, R: Real> Model<'a, R> {
                 t_map * drive_dir * clamp((p.load_no_load_rpm - along) / span, zero, one)
             };
             p_mapped_mech += (fric_nominal + *tl) * w_l;
-            disc.step_compensated(x, x_lo, [t_in.wide(), (fric + *tl).wide()]);
+            disc.step_compensated(x, x_lo, [t_in, fric + *tl]);
         }
 
         if c.backlash.enabled() {
@@ -551,7 +554,7 @@ impl<'a, R: Real> Model<'a, R> {
         let p_ref = s.p_mech_ref.update(p_mapped_mech, k.sut_rate_step);
         let p_unmapped = t_motor * w_motor - p_ref;
         let p_unmapped_el = if p_unmapped > zero {
-            p_unmapped / p.sut_drive_efficiency
+            p_unmapped.div_by(k.per_efficiency)
         } else {
             p_unmapped * p.sut_drive_efficiency
         };

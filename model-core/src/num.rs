@@ -34,6 +34,10 @@ pub trait Real:
     /// drivetrain's state and coefficients, integrators, products with the step): `Self`
     /// for f32, [`FxWide`] for [`Fx`].
     type Wide: Real;
+    /// A divisor fixed at construction ([`Real::divisor`]): for f32 the value itself (the
+    /// step divides, as the twin always did); for fixed point its reciprocal, wide, so
+    /// that the step multiplies instead of dividing.
+    type Divisor: Copy + Debug + PartialEq;
     /// 0.
     const ZERO: Self;
     /// 1.
@@ -61,10 +65,19 @@ pub trait Real:
     /// A wide value in this format: rounded to the nearest (ties up) and saturating for
     /// [`Fx`]; the identity for f32.
     fn narrow(w: Self::Wide) -> Self;
+    /// `w n` in the wide format: exactly `w * n.wide()`, for [`Fx`] from two 32-bit
+    /// products instead of four (a wide coefficient times a signal).
+    fn wide_mul(w: Self::Wide, n: Self) -> Self::Wide;
+    /// `d` as a [`Real::Divisor`], for [`Real::div_by`].
+    fn divisor(d: Self) -> Self::Divisor;
+    /// `self / d`: the quotient itself for f32; for fixed point the product with `d`'s
+    /// reciprocal (within one unit of the quotient, rounded from the wide product).
+    fn div_by(self, d: Self::Divisor) -> Self;
 }
 
 impl Real for f32 {
     type Wide = f32;
+    type Divisor = f32;
     const ZERO: Self = 0.0;
     const ONE: Self = 1.0;
     const EXACT_SUM: bool = false;
@@ -102,6 +115,18 @@ impl Real for f32 {
     #[inline(always)]
     fn narrow(w: f32) -> f32 {
         w
+    }
+    #[inline(always)]
+    fn wide_mul(w: f32, n: f32) -> f32 {
+        w * n
+    }
+    #[inline(always)]
+    fn divisor(d: f32) -> f32 {
+        d
+    }
+    #[inline(always)]
+    fn div_by(self, d: f32) -> f32 {
+        self / d
     }
 }
 

@@ -37,8 +37,9 @@ impl FxWide {
         self.0.to_bits()
     }
 
+    /// The end of the range in the sign `positive`, counted as a saturation.
     #[inline(always)]
-    fn clip(positive: bool) -> Self {
+    pub(super) fn clip(positive: bool) -> Self {
         saturated();
         FxWide(if positive { I32F32::MAX } else { I32F32::MIN })
     }
@@ -66,20 +67,53 @@ impl Sub for FxWide {
     }
 }
 
-/// `I32F32::checked_mul` on the bits, from four 32 x 32 -> 64-bit products: the
-/// same result (`floor(a b / 2^32)`, `None` beyond i64), without the 128-bit
-/// multiplication `fixed` widens to, which a 32-bit core expands into many more
-/// instructions. Tested against `checked_mul`.
+/// `I32F32::checked_mul` on the bits: `floor(a b / 2^32)`, `None` beyond i64. From the
+/// four 32 x 32 -> 64-bit products of the operands' unsigned digits, made signed by
+/// subtracting the other operand from the high half for a negative one (two's
+/// complement), so a 32-bit core needs no 128-bit arithmetic. Tested against
+/// `checked_mul`.
 #[inline(always)]
 pub(crate) fn mul_bits(a: i64, b: i64) -> Option<i64> {
-    let (ah, al) = (a >> 32, i64::from(a as u32));
-    let (bh, bl) = (b >> 32, i64::from(b as u32));
-    // a b = ah bh 2^64 + (ah bl + al bh) 2^32 + al bl: every product fits its type
-    // (|ah|, |bh| <= 2^31; al, bl < 2^32), and the floor of a b / 2^32 is exact.
-    let ll = (al as u64) * (bl as u64);
-    let mid = i128::from(ah * bl) + i128::from(al * bh) + i128::from(ll >> 32);
-    let q = (i128::from(ah * bh) << 32) + mid;
-    i64::try_from(q).ok()
+    let (ua, ub) = (a as u64, b as u64);
+    let (al, ah) = (ua as u32, (ua >> 32) as u32);
+    let (bl, bh) = (ub as u32, (ub >> 32) as u32);
+    let m = |x: u32, y: u32| u64::from(x) * u64::from(y);
+    let (p0, p1, p2, p3) = (m(al, bl), m(al, bh), m(ah, bl), m(ah, bh));
+    // Bits 32..63 of the unsigned product, with their carry into bit 64.
+    let mid = (p0 >> 32) + (p1 & 0xffff_ffff) + (p2 & 0xffff_ffff);
+    // Bits 64..127 (mod 2^64); a negative operand is its unsigned value less 2^64.
+    let mut hi = p3.wrapping_add(p1 >> 32).wrapping_add(p2 >> 32).wrapping_add(mid >> 32);
+    if a < 0 {
+        hi = hi.wrapping_sub(ub);
+    }
+    if b < 0 {
+        hi = hi.wrapping_sub(ua);
+    }
+    // The floor of a b / 2^32 is bits 32..95: in range when bits 64..127 extend bit 95.
+    let hi = hi as i64;
+    if hi != i64::from(hi as i32) {
+        return None;
+    }
+    Some(((hi << 32) as u64 | (mid & 0xffff_ffff)) as i64)
+}
+
+/// `floor(w n / 2^15)`: the bits of an I32F32 `w` times an I17F15 `n` in I32F32 (the
+/// same value as `w` times `n` widened, a product whose low 17 bits of one operand are
+/// 0), `None` beyond i64; two 32 x 32 -> 64-bit products. Tested against [`mul_bits`].
+#[inline(always)]
+pub(crate) fn mul_narrow_bits(w: i64, n: i32) -> Option<i64> {
+    let (wl, wh) = (w as u32, (w >> 32) as i32);
+    let lo = u64::from(wl) * u64::from(n as u32);
+    // w n = wh n 2^32 + wl n, and wl n = wl (n as u32) - wl 2^32 for a negative n.
+    let mut hi = i64::from(wh) * i64::from(n) + (lo >> 32) as i64;
+    if n < 0 {
+        hi -= i64::from(wl);
+    }
+    // w n / 2^15 = hi 2^17 + (low 32 bits) / 2^15: in range when hi fits 47 bits.
+    if hi != (hi << 17) >> 17 {
+        return None;
+    }
+    Some((hi << 17) | i64::from((lo as u32) >> 15))
 }
 
 /// `(u1 2^32 + u0) / v` and its remainder for `u1 < v` (the quotient fits 32 bits),
@@ -232,6 +266,7 @@ impl SubAssign for FxWide {
 
 impl Real for FxWide {
     type Wide = FxWide;
+    type Divisor = FxWide;
     const ZERO: Self = FxWide(I32F32::ZERO);
     const ONE: Self = FxWide(I32F32::ONE);
     const EXACT_SUM: bool = true;
@@ -274,6 +309,18 @@ impl Real for FxWide {
     #[inline(always)]
     fn narrow(w: FxWide) -> Self {
         w
+    }
+    #[inline(always)]
+    fn wide_mul(w: FxWide, n: FxWide) -> FxWide {
+        w * n
+    }
+    #[inline]
+    fn divisor(d: FxWide) -> FxWide {
+        FxWide::ONE / d
+    }
+    #[inline(always)]
+    fn div_by(self, d: FxWide) -> FxWide {
+        self * d
     }
 }
 
