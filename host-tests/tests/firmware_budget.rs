@@ -14,8 +14,9 @@
 //!
 //! The FPU-less Cortex-M3 (issue 15): the same cost binary counts the fixed-point twin
 //! and, for comparison, the f32 twin in soft-float on the same core; the table is
-//! printed, the fixed-point build's worst step is held to `rt::BUDGET_M3_STEP_INSNS` and
-//! its bench firmware to `rt::BUDGET_M3_FLASH` and `rt::BUDGET_M3_RAM`.
+//! printed, the fixed-point build's worst step is held to `rt::BUDGET_M3_STEP_INSNS`, its
+//! mean step to `rt::MIN_M3_SOFT_OVER_FIXED` times cheaper than soft-float's, and its
+//! bench firmware to `rt::BUDGET_M3_FLASH` and `rt::BUDGET_M3_RAM`.
 
 mod firmware_support;
 
@@ -140,13 +141,21 @@ fn m3_fixed_point_step_cost_is_within_budget() {
             s.mean / f.mean
         );
     }
-    for (p, f, _) in &fixed {
+    for ((p, f, _), (_, s, _)) in fixed.iter().zip(&soft) {
         assert!(
             f.max <= rt::BUDGET_M3_STEP_INSNS,
             "{}: the M3's fixed-point step takes {} instructions at worst, over the budget of {}",
             p.name(),
             f.max,
             rt::BUDGET_M3_STEP_INSNS
+        );
+        assert!(
+            s.mean >= rt::MIN_M3_SOFT_OVER_FIXED * f.mean,
+            "{}: the fixed-point step ({:.0} instructions, mean) is not {}x cheaper than soft-float ({:.0})",
+            p.name(),
+            f.mean,
+            rt::MIN_M3_SOFT_OVER_FIXED,
+            s.mean
         );
     }
 }

@@ -8,7 +8,8 @@
 //! transcendental functions in the step, f64 only at construction with basic operations.
 //!
 //! The physics is written once, generic over the scalar [`Real`]: the f32 twin above,
-//! and with feature `fixed` a fixed-point twin ([`Fx`], `fixed::types::I32F32`) for
+//! and with feature `fixed` a fixed-point twin ([`Fx`], 32-bit `I17F15` signals with
+//! 64-bit `I32F32` where a signal needs it, [`FxWide`]) for
 //! cores without an FPU (the Cortex-M3 firmware), from the same source
 //! ([`Model::new_fx`], [`Simulation::new_fx`]).
 //!
@@ -63,7 +64,7 @@ pub use effects::Effects;
 pub use model::{Config, ConfigError, Inputs, Model};
 pub use num::Real;
 #[cfg(feature = "fixed")]
-pub use num::{saturations, Fx};
+pub use num::{saturations, Fx, FxWide};
 pub use outputs::{Channel, Outputs, MEASURED, N_CHANNELS};
 pub use params::{CouplingStiffness, Params, RateSet, SpeedTarget};
 pub use profile::{Builtin, Profile, ProfileError, ProfileSet, SetMode, SetPoints};

@@ -166,13 +166,17 @@ struct StepConsts<R: Real> {
     load_rate_step: R,
     two: R,
     hundred: R,
-    /// [rpm per rad/s] and its inverse.
+    /// [rpm per rad/s].
     rpm_per_rad_s: R,
-    rad_s_per_rpm: R,
     /// [rad/s] [`DIFF_FRICTION_EPS`], as a divisor.
     per_diff_eps: R::Divisor,
     /// [-] the SuT drive's efficiency, as a divisor.
     per_efficiency: R::Divisor,
+    /// [rad/s] axle speed below which a regenerating load fades, and as a divisor.
+    fade: R,
+    per_fade: R::Divisor,
+    /// [rpm] load no-load minus base speed, as a divisor.
+    per_span: R::Divisor,
     /// [N m], [N m s/rad] the differential's friction (effect).
     diff_coulomb: R,
     diff_viscous: R,
@@ -330,6 +334,7 @@ impl<'a, R: Real> Model<'a, R> {
         let dt = R::Wide::from_f64(dt_s);
         let r_conn = fx.connector_resistance.unwrap_or(p.connector_resistance);
         let pr: Params<R> = p.to();
+        let fade = R::lit(p.regen_fade_rpm * RAD_S_PER_RPM);
         let k = StepConsts {
             half: R::lit(0.5),
             half_w: w(0.5),
@@ -340,9 +345,11 @@ impl<'a, R: Real> Model<'a, R> {
             two: R::lit(2.0),
             hundred: R::lit(100.0),
             rpm_per_rad_s: R::lit(RPM_PER_RAD_S),
-            rad_s_per_rpm: R::lit(RAD_S_PER_RPM),
             per_diff_eps: R::divisor(R::lit(DIFF_FRICTION_EPS)),
             per_efficiency: R::divisor(pr.sut_drive_efficiency),
+            fade,
+            per_fade: R::divisor(if fade > R::ZERO { fade } else { R::ONE }),
+            per_span: R::divisor(R::lit(p.load_no_load_rpm - p.load_base_rpm)),
             diff_coulomb: R::lit(fx.differential_friction.coulomb_nm),
             diff_viscous: R::lit(fx.differential_friction.viscous_nm_s),
             fric_scale: fx.axle_friction_scale.map(R::lit),
@@ -458,8 +465,8 @@ impl<'a, R: Real> Model<'a, R> {
         let thr_ctl = c.delay.apply(&mut s.delay, thr_sp);
         probe!(self, Tables);
         let mapped =
-            self.maps.throttle_input.eval_hinted(throttle::voltage(&p, thr_ctl), &mut s.hints.throttle_input);
-        let target = throttle::target_speed_rpm(&self.maps, &p, c.mode, mapped, thr_ctl, &mut s.hints.speed);
+            self.maps.throttle_input.eval_hinted(throttle::voltage(p, thr_ctl), &mut s.hints.throttle_input);
+        let target = throttle::target_speed_rpm(&self.maps, p, c.mode, mapped, thr_ctl, &mut s.hints.speed);
         probe!(self, RateLogic);
         let n = p.sut_gear_ratio;
         let [xl, xr] = s.x;
@@ -481,7 +488,6 @@ impl<'a, R: Real> Model<'a, R> {
 
         // Per side: friction and load motor at the load node, exact linear update.
         probe!(self, Mechanics);
-        let fade = p.regen_fade_rpm * k.rad_s_per_rpm;
         let drive_dir = if thr_sp < zero { -one } else { one };
         let mut t_load = [zero; 2];
         // Mechanical power the maps account for: the nominal friction and the load motors
@@ -506,14 +512,13 @@ impl<'a, R: Real> Model<'a, R> {
             // Regenerating torque brakes whatever way the shaft turns and fades out near
             // standstill (nothing left to regenerate); motoring drives in the run direction.
             *tl = if t_map >= zero {
-                t_map * (if fade > zero { clamp(w_l / fade, -one, one) } else { zero })
+                t_map * (if k.fade > zero { clamp(w_l.div_by(k.per_fade), -one, one) } else { zero })
             } else {
                 // Motoring: as mapped up to the base speed, then fading linearly to zero
                 // at the no-load speed in the direction it drives (back-EMF meets the
                 // supply). Bounds what one motoring load can do through the open diff.
                 let along = w_l * drive_dir * p.load_gear_ratio * k.rpm_per_rad_s;
-                let span = p.load_no_load_rpm - p.load_base_rpm;
-                t_map * drive_dir * clamp((p.load_no_load_rpm - along) / span, zero, one)
+                t_map * drive_dir * clamp((p.load_no_load_rpm - along).div_by(k.per_span), zero, one)
             };
             p_mapped_mech += (fric_nominal + *tl) * w_l;
             disc.step_compensated(x, x_lo, [t_in, fric + *tl]);
