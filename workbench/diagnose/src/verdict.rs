@@ -204,9 +204,8 @@ pub(super) fn structure_in(
     let (c, w) = flagged.iter().min_by(|a, b| a.1.p.total_cmp(&b.1.p))?;
     Some(Structure {
         channel: channels[*c].name(),
-        unit: channels[*c].unit(),
         window_s: (w.start as f64 * dt, (w.start + w.len) as f64 * dt),
-        mean: w.mean,
+        what: w.what(channels[*c].unit()),
         p: w.p,
         flagged: flagged.len(),
         tested,
@@ -376,9 +375,9 @@ fn describe_set(set: &SetFit, cands: &[Candidate]) -> String {
 /// Structure found where the whole run's energy is noise-like.
 pub(super) struct Structure {
     channel: &'static str,
-    unit: &'static str,
     window_s: (f64, f64),
-    mean: f64,
+    /// What the window holds ([`structure::Window::what`]).
+    what: String,
     p: f64,
     flagged: usize,
     tested: usize,
@@ -394,8 +393,8 @@ impl Structure {
     fn left(&self, who: &str) -> String {
         let verb = if who == "they" { "do" } else { "does" };
         format!(
-            "structure is left that {who} {verb} not explain: {} at {:.1}–{:.1} s (mean twin − measured {:.4} {})",
-            self.channel, self.window_s.0, self.window_s.1, self.mean, self.unit
+            "structure is left that {who} {verb} not explain: {} at {:.1}–{:.1} s ({})",
+            self.channel, self.window_s.0, self.window_s.1, self.what
         )
     }
 }
@@ -403,13 +402,12 @@ impl Structure {
 fn local_structure(ratio: f64, st: &Structure) -> String {
     format!(
         "unexplained: the whole run's error is noise-like ({ratio:.2}x the noise), but not everywhere: {} has \
-         structure left at {:.1}–{:.1} s (mean twin − measured {:.4} {}, p {} against noise alone; {} of {} \
+         structure left at {:.1}–{:.1} s ({}, p {} against noise alone; {} of {} \
          windows flagged at 1 % over all of them) that no library effect explains",
         st.channel,
         st.window_s.0,
         st.window_s.1,
-        st.mean,
-        st.unit,
+        st.what,
         structure::p_text(st.p),
         st.flagged,
         st.tested

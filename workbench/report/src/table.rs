@@ -86,13 +86,15 @@ fn local_structure(o: &mut String, r: &CompareResult) {
             .take(3)
             .map(|x| {
                 let t0 = r.time_s.get(x.start).copied().unwrap_or(x.start as f64 * dt);
+                let what = match x.line_hz {
+                    Some(_) => x.what(&c.unit),
+                    None => format!("mean {} {}", num(x.mean), c.unit),
+                };
                 format!(
-                    "{:.1}–{:.1} s (error {:.1}x the noise, mean {} {}, p {})",
+                    "{:.1}–{:.1} s (error {:.1}x the noise, {what}, p {})",
                     t0,
                     t0 + x.len as f64 * dt,
                     x.energy_ratio,
-                    num(x.mean),
-                    c.unit,
                     structure::p_text(x.p)
                 )
             })
