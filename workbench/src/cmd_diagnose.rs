@@ -58,7 +58,8 @@ How the diagnosis works:
   more is refitted jointly on the simulator and named together ('missing effects: A + B').
   Verdicts: missing (the effect or set explains the error and leaves noise), partial (it
   explains part, or structure is left per channel and 2 s window, located), unexplained,
-  nothing_missing (noise-like in total and in every channel and window).
+  nothing_missing (noise-like in total and in every channel and window, and no channel
+  with a mains line: 50/60 Hz pickup).
   The twin runs exactly as in `simrod compare` with the same flags (--data-dir, --effects,
   --speed-window-s, ...): the bench counts encoder pulses in a window centred on each sample
   (0.1 s on the SimRod bench; 0 when the speeds are not window-counted), and the twin's
