@@ -144,6 +144,127 @@ pub(crate) fn clamp<R: Real>(v: R, lo: R, hi: R) -> R {
     }
 }
 
+/// The saturating operations both fixed-point formats share: `$t`, a newtype over the
+/// `fixed` type `$inner`, with `$mul`/`$div` its product and quotient on the bits
+/// (`None` beyond the range). Every result beyond the range is clipped to the nearest
+/// end and counted ([`saturations`]); a division by zero gives the end in the
+/// numerator's sign (0 for 0 / 0); a NaN converts to 0.
+#[cfg(feature = "fixed")]
+macro_rules! saturating_fixed {
+    ($t:ident, $inner:ty, $mul:path, $div:path) => {
+        impl core::fmt::Debug for $t {
+            fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                core::fmt::Display::fmt(&self.0, f)
+            }
+        }
+
+        impl $t {
+            /// The end of the range in the sign `positive`, counted as a saturation.
+            #[inline(always)]
+            pub(super) fn clip(positive: bool) -> Self {
+                $crate::num::saturated();
+                $t(if positive { <$inner>::MAX } else { <$inner>::MIN })
+            }
+
+            /// An f32 rounded to the nearest, saturating (NaN to 0).
+            #[inline(always)]
+            fn from_f32(v: f32) -> Self {
+                match <$inner>::checked_from_num(v) {
+                    Some(x) => $t(x),
+                    None if v.is_nan() => $t(<$inner>::ZERO),
+                    None => $t::clip(v > 0.0),
+                }
+            }
+
+            /// An f64 rounded to the nearest, saturating (NaN to 0).
+            #[inline]
+            fn from_f64_saturating(v: f64) -> Self {
+                match <$inner>::checked_from_num(v) {
+                    Some(x) => $t(x),
+                    None if v.is_nan() => $t(<$inner>::ZERO),
+                    None => $t::clip(v > 0.0),
+                }
+            }
+        }
+
+        impl core::ops::Add for $t {
+            type Output = $t;
+            #[inline(always)]
+            fn add(self, r: $t) -> $t {
+                match self.0.checked_add(r.0) {
+                    Some(v) => $t(v),
+                    None => $t::clip(r.0 > <$inner>::ZERO),
+                }
+            }
+        }
+
+        impl core::ops::Sub for $t {
+            type Output = $t;
+            #[inline(always)]
+            fn sub(self, r: $t) -> $t {
+                match self.0.checked_sub(r.0) {
+                    Some(v) => $t(v),
+                    None => $t::clip(r.0 < <$inner>::ZERO),
+                }
+            }
+        }
+
+        impl core::ops::Mul for $t {
+            type Output = $t;
+            #[inline(always)]
+            fn mul(self, r: $t) -> $t {
+                match $mul(self.to_bits(), r.to_bits()) {
+                    Some(v) => $t::from_bits(v),
+                    None => $t::clip((self.0 < <$inner>::ZERO) == (r.0 < <$inner>::ZERO)),
+                }
+            }
+        }
+
+        impl core::ops::Div for $t {
+            type Output = $t;
+            #[inline(always)]
+            fn div(self, r: $t) -> $t {
+                if r.0 == <$inner>::ZERO {
+                    if self.0 == <$inner>::ZERO {
+                        $crate::num::saturated();
+                        return $t(<$inner>::ZERO);
+                    }
+                    return $t::clip(self.0 > <$inner>::ZERO);
+                }
+                match $div(self.to_bits(), r.to_bits()) {
+                    Some(v) => $t::from_bits(v),
+                    None => $t::clip((self.0 < <$inner>::ZERO) == (r.0 < <$inner>::ZERO)),
+                }
+            }
+        }
+
+        impl core::ops::Neg for $t {
+            type Output = $t;
+            #[inline(always)]
+            fn neg(self) -> $t {
+                match self.0.checked_neg() {
+                    Some(v) => $t(v),
+                    None => $t::clip(true),
+                }
+            }
+        }
+
+        impl core::ops::AddAssign for $t {
+            #[inline(always)]
+            fn add_assign(&mut self, r: $t) {
+                *self = *self + r;
+            }
+        }
+
+        impl core::ops::SubAssign for $t {
+            #[inline(always)]
+            fn sub_assign(&mut self, r: $t) {
+                *self = *self - r;
+            }
+        }
+    };
+}
+
 #[cfg(feature = "fixed")]
 mod fx;
 #[cfg(feature = "fixed")]
