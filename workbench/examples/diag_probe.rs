@@ -26,10 +26,8 @@ fn main() {
     let meas: Vec<Vec<f64>> = channels.iter().map(|c| m.signal(c.name()).unwrap().values.clone()).collect();
     let win: f64 = env("WIN", "0.1").parse().unwrap();
     let model = ModelOptions { sensors: SensorModel::counting(win), ..ModelOptions::default() };
-    let twin = RecordedTwin {
-        twin: MeasuredTwin::new(&m, &model, &InputSource::Recorded).unwrap(),
-        channels: channels.clone(),
-    };
+    let twin =
+        RecordedTwin::new(MeasuredTwin::new(&m, &model, &InputSource::Recorded).unwrap(), channels.clone());
     let t0 = Instant::now();
     let probe = BuiltinProbe::standard(model, channels);
     let d = diagnose::diagnose(&twin, &meas, &Options::default(), Some(&probe)).unwrap();

@@ -234,6 +234,26 @@ fn load_run(
     Ok(RunOnGrid { src, twin, al, notes })
 }
 
+/// Every run of the command line, loaded side by side on `threads` workers (a
+/// campaign's files are independent); the first failing file's error, in command-line
+/// order.
+fn load_runs(
+    args: &DiagnoseArgs,
+    model: &ModelOptions,
+    opts: &LoadOptions,
+    threads: usize,
+) -> Result<Vec<RunOnGrid>, CmdError> {
+    use rayon::prelude::*;
+    let load = || -> Vec<Result<RunOnGrid, CmdError>> {
+        args.meas.par_iter().map(|path| load_run(path, args, model, opts)).collect()
+    };
+    let loaded = match rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build() {
+        Ok(pool) => pool.install(load),
+        Err(_) => load(),
+    };
+    loaded.into_iter().collect()
+}
+
 /// Load, align and diagnose one run or a campaign of runs; writes nothing.
 pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
     let t0 = Instant::now();
@@ -260,10 +280,8 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
         budget: args.budget.budget(),
         ..LoadOptions::default()
     };
-    let mut runs = Vec::with_capacity(args.meas.len());
-    for path in &args.meas {
-        runs.push(load_run(path, args, &model, &load_opts)?);
-    }
+    let threads = args.threads.map_or_else(|| Options::default().threads, |t| t as usize);
+    let mut runs = load_runs(args, &model, &load_opts, threads)?;
     let src = runs.iter().map(|r| r.src.as_str()).collect::<Vec<_>>().join(" + ");
     let limits = regions::Limits::of_model(&model).map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;
     let mut o = Options {
@@ -273,9 +291,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
         progress: true,
         ..Options::default()
     };
-    if let Some(t) = args.threads {
-        o.threads = t as usize;
-    }
+    o.threads = threads;
     let dt_us = runs[0].al.grid.dt_us;
     let samples = runs.iter().map(|r| r.al.grid.time_s.len()).sum();
     let duration_s = runs.iter().map(|r| r.al.grid.duration_s()).sum();
@@ -287,7 +303,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
         .into_iter()
         .map(|r| {
             notes.extend(r.notes);
-            RecordedTwin { twin: r.twin, channels: fitted.channels.clone() }
+            RecordedTwin::new(r.twin, fitted.channels.clone())
         })
         .collect();
     let campaign = Campaign::new(twins).map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;

@@ -78,10 +78,10 @@ fn compare_and_diagnose_see_the_same_twin() {
     };
     let meas = load(&d.path().join("m.csv"), None).unwrap();
     let r = compare(&meas, &CompareOptions { model: model.clone(), ..CompareOptions::default() }).unwrap();
-    let twin = RecordedTwin {
-        twin: MeasuredTwin::new(&meas, &model, &InputSource::Recorded).unwrap(),
-        channels: fitted_channels(),
-    };
+    let twin = RecordedTwin::new(
+        MeasuredTwin::new(&meas, &model, &InputSource::Recorded).unwrap(),
+        fitted_channels(),
+    );
     let sim = twin.run(&model.effects).unwrap();
     for (ch, s) in twin.channels().iter().zip(&sim) {
         let c = r.channel(ch.name()).unwrap();

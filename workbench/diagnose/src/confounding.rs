@@ -88,19 +88,25 @@ fn separating_profile(
     l: &Leaders,
     w: &[f64],
 ) -> Option<(String, f64)> {
+    use rayon::prelude::*;
     let (a, b) = (member_effects(o, specs, l, members[0]), member_effects(o, specs, l, members[1]));
-    let mut best: Option<(String, f64)> = None;
-    for i in 0..probe.count() {
-        let (Some(base), Some(sa), Some(sb)) = (probe.run(i, &o.base), probe.run(i, &a), probe.run(i, &b))
-        else {
-            continue;
-        };
-        let Some(cos) = change_cosine(&base, &sa, &sb, w) else { continue };
-        if best.as_ref().is_none_or(|(_, c)| cos < *c) {
-            best = Some((probe.name(i), cos));
+    // Each profile's three runs are independent of every other's: on the pool, and the
+    // best chosen in profile order (ties go to the first, as a serial search would).
+    let cosines: Vec<Option<f64>> = (0..probe.count())
+        .into_par_iter()
+        .map(|i| {
+            let (base, sa, sb) = (probe.run(i, &o.base)?, probe.run(i, &a)?, probe.run(i, &b)?);
+            change_cosine(&base, &sa, &sb, w)
+        })
+        .collect();
+    let mut best: Option<(usize, f64)> = None;
+    for (i, cos) in cosines.into_iter().enumerate() {
+        let Some(cos) = cos else { continue };
+        if best.is_none_or(|(_, c)| cos < c) {
+            best = Some((i, cos));
         }
     }
-    best
+    best.map(|(i, cos)| (probe.name(i), cos))
 }
 
 /// A member at its fitted values (its linear estimate if not refitted, a step if absent).

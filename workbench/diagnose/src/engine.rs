@@ -60,6 +60,14 @@ pub trait Twin: Sync {
         vec![self.samples()]
     }
 
+    /// Keep the physical values of a run with `fx`, so that effects differing from `fx`
+    /// only in the measurement chain are replayed, not simulated (a twin that cannot
+    /// does nothing). The results are the same either way.
+    fn hold_physics(&self, fx: &Effects) -> Result<(), String> {
+        let _ = fx;
+        Ok(())
+    }
+
     /// Every `stride`-th sample of [`Twin::run`] (from the first): what the fits read.
     /// A long run's full output is then held only while it is reduced.
     fn run_every(&self, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {

@@ -58,6 +58,7 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
     if meas.iter().any(|m| m.len() != n) || n < 10 {
         return Err("measured channels must have as many samples as the twin (at least 10)".into());
     }
+    twin.hold_physics(&o.base)?;
     let base_sim = twin.run(&o.base)?;
     if base_sim.len() != channels.len() || base_sim.iter().any(|c| c.len() != n) {
         return Err("the twin returned channels of the wrong shape".into());

@@ -84,7 +84,7 @@ pub fn bench_run_with(fx: &BenchEffects, plant: PlantKind, profile: (Builtin, f3
         channels.iter().map(|c| m.signal(c.name()).map(|s| s.values.clone()).unwrap_or_default()).collect();
     // The twin sees the run as `simrod diagnose` sees the file: one path for both.
     let twin = MeasuredTwin::new(&m, &opts, &InputSource::Recorded).expect("a bench run");
-    Run { meas, twin: RecordedTwin { twin, channels } }
+    Run { meas, twin: RecordedTwin::new(twin, channels) }
 }
 
 /// Diagnose a run blind (current model = the thesis model plus `base`).

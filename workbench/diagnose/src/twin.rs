@@ -2,13 +2,13 @@
 //! [`simrod_twin::MeasuredTwin`], the same path `simrod compare` takes) and the twin on
 //! built-in profiles (to find a separating experiment).
 
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use model_core::{Builtin, Channel, Effects, Inputs, Profile, SetPoints};
 use simrod_io::datadir::ModelData;
 
-use super::engine::{every, ProfileProbe, Twin};
-use simrod_twin::{MeasuredTwin, ModelOptions};
+use super::engine::{ProfileProbe, Twin};
+use simrod_twin::{Keep, MeasuredTwin, ModelOptions, Physical};
 
 /// The twin on a measured run, restricted to the channels the diagnosis fits.
 pub struct RecordedTwin {
@@ -16,6 +16,38 @@ pub struct RecordedTwin {
     pub twin: MeasuredTwin,
     /// Channels to return.
     pub channels: Vec<Channel>,
+    /// The physical values of one run ([`Twin::hold_physics`]): effects that change only
+    /// the measurement chain from it are replayed over them, not simulated.
+    physics: OnceLock<Physical>,
+}
+
+impl RecordedTwin {
+    /// The twin on `twin`'s run, returning `channels`.
+    pub fn new(twin: MeasuredTwin, channels: Vec<Channel>) -> Self {
+        Self { twin, channels, physics: OnceLock::new() }
+    }
+
+    /// The samples `keep` names with `fx`: replayed when only the chain differs from the
+    /// held physics, else simulated.
+    fn record(&self, fx: &Effects, keep: Keep) -> Result<Vec<Vec<f32>>, String> {
+        let model = &self.twin.model;
+        if let Some(r) = self.physics.get().and_then(|ph| model.replay(ph, fx, &self.channels, keep)) {
+            return r.map_err(|e| e.to_string());
+        }
+        self.run_kept(model, fx, keep)
+    }
+
+    /// The twin `model` on this run, the samples `keep` names.
+    fn run_kept(&self, model: &ModelOptions, fx: &Effects, keep: Keep) -> Result<Vec<Vec<f32>>, String> {
+        model
+            .run_kept(self.twin.grid.dt_us, *fx, &self.twin.inputs, &self.channels, keep)
+            .map_err(|e| e.to_string())
+    }
+
+    /// This run's model options on other model data.
+    fn with_data(&self, data: &Arc<ModelData>) -> ModelOptions {
+        ModelOptions { data: Some(data.clone()), ..self.twin.model.clone() }
+    }
 }
 
 impl Twin for RecordedTwin {
@@ -29,7 +61,20 @@ impl Twin for RecordedTwin {
         self.twin.grid.dt_s()
     }
     fn run(&self, fx: &Effects) -> Result<Vec<Vec<f32>>, String> {
-        self.twin.simulate(*fx, &self.channels).map_err(|e| e.to_string())
+        self.record(fx, Keep::ALL)
+    }
+
+    fn run_every(&self, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
+        self.record(fx, Keep { first: 0, stride })
+    }
+
+    fn hold_physics(&self, fx: &Effects) -> Result<(), String> {
+        if self.physics.get().is_none() {
+            let t = &self.twin;
+            let ph = t.model.run_physical(t.grid.dt_us, fx, &t.inputs).map_err(|e| e.to_string())?;
+            let _ = self.physics.set(ph);
+        }
+        Ok(())
     }
 
     fn resolution(&self) -> Vec<f64> {
@@ -48,11 +93,7 @@ impl Twin for RecordedTwin {
     }
 
     fn run_data(&self, data: &Arc<ModelData>, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
-        let model = ModelOptions { data: Some(data.clone()), ..self.twin.model.clone() };
-        let out = model
-            .run(self.twin.grid.dt_us, *fx, &self.twin.inputs, &self.channels)
-            .map_err(|e| e.to_string())?;
-        Ok(out.into_iter().map(|c| every(c, stride)).collect())
+        self.run_kept(&self.with_data(data), fx, Keep { first: 0, stride })
     }
 }
 
@@ -89,12 +130,33 @@ impl Campaign {
     /// Every run's channels, one run after another.
     fn joined(
         &self,
-        each: impl Fn(&RecordedTwin) -> Result<Vec<Vec<f32>>, String>,
+        each: impl Fn(&RecordedTwin) -> Result<Vec<Vec<f32>>, String> + Sync,
     ) -> Result<Vec<Vec<f32>>, String> {
-        let mut out: Vec<Vec<f32>> = vec![Vec::with_capacity(self.samples()); self.channels().len()];
+        self.joined_every(1, |r, _| each(r))
+    }
+
+    /// Every `stride`-th sample of the joined runs, from the first: each run gives the
+    /// samples it holds of that sequence (`keep`), and the runs simulate side by side.
+    fn joined_every(
+        &self,
+        stride: usize,
+        each: impl Fn(&RecordedTwin, Keep) -> Result<Vec<Vec<f32>>, String> + Sync,
+    ) -> Result<Vec<Vec<f32>>, String> {
+        use rayon::prelude::*;
+        let stride = stride.max(1);
+        let mut keeps = Vec::with_capacity(self.runs.len());
+        let mut offset = 0;
         for r in &self.runs {
-            for (all, part) in out.iter_mut().zip(each(r)?) {
-                all.extend(part);
+            keeps.push(Keep { first: (stride - offset % stride) % stride, stride });
+            offset += r.samples();
+        }
+        let parts: Vec<Vec<Vec<f32>>> =
+            self.runs.par_iter().zip(keeps).map(|(r, k)| each(r, k)).collect::<Result<_, _>>()?;
+        let mut out: Vec<Vec<f32>> =
+            vec![Vec::with_capacity(self.samples().div_ceil(stride)); self.channels().len()];
+        for part in parts {
+            for (all, p) in out.iter_mut().zip(part) {
+                all.extend(p);
             }
         }
         Ok(out)
@@ -118,6 +180,15 @@ impl Twin for Campaign {
         self.joined(|r| r.run(fx))
     }
 
+    fn run_every(&self, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
+        self.joined_every(stride, |r, keep| r.record(fx, keep))
+    }
+
+    fn hold_physics(&self, fx: &Effects) -> Result<(), String> {
+        use rayon::prelude::*;
+        self.runs.par_iter().try_for_each(|r| r.hold_physics(fx))
+    }
+
     fn resolution(&self) -> Vec<f64> {
         self.runs.first().map_or_else(Vec::new, Twin::resolution)
     }
@@ -135,10 +206,7 @@ impl Twin for Campaign {
     }
 
     fn run_data(&self, data: &Arc<ModelData>, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
-        // Each run strided from its own first sample, as `Twin::run_every` strides the
-        // joined series only when every run's length is a multiple of the stride: join
-        // whole runs, then stride, so the samples match the fits'.
-        Ok(self.joined(|r| r.run_data(data, fx, 1))?.into_iter().map(|c| every(c, stride)).collect())
+        self.joined_every(stride, |r, keep| r.run_kept(&r.with_data(data), fx, keep))
     }
 }
 
@@ -188,9 +256,8 @@ impl ProfileProbe for BuiltinProbe {
         let (b, ts, ls) = *self.candidates.get(i)?;
         let profile = Profile::new(self.model.profile_sets(b), ts, ls).ok()?;
         let inputs = profile_inputs(&profile, PROBE_DT_US, self.model.supply_v);
-        let out = self.model.run(PROBE_DT_US, *fx, &inputs, &self.channels).ok()?;
         // Every 10th step is plenty to compare shapes.
-        Some(out.into_iter().map(|v| v.into_iter().step_by(10).collect()).collect())
+        self.model.run_kept(PROBE_DT_US, *fx, &inputs, &self.channels, Keep { first: 0, stride: 10 }).ok()
     }
 }
 

@@ -11,6 +11,7 @@
 pub mod args;
 pub mod measured;
 pub mod plausible;
+pub mod replay;
 pub mod sensors;
 pub mod spans;
 
@@ -25,7 +26,8 @@ pub use measured::{
     check_budget, grid_samples, Aligned, InputSource, MeasuredTwin, Paired, RunGrid, TwinError,
     FALLBACK_DT_US,
 };
-pub use sensors::SensorModel;
+pub use replay::Physical;
+pub use sensors::{Keep, SensorModel};
 use simrod_io::datadir::ModelData;
 
 /// What the twin is: model data, effects, parameter choices, supply and the bench's
@@ -104,15 +106,25 @@ impl ModelOptions {
         inputs: &[Inputs],
         channels: &[Channel],
     ) -> Result<Vec<Vec<f32>>, TwinError> {
+        self.run_kept(dt_us, effects, inputs, channels, Keep::ALL)
+    }
+
+    /// As [`ModelOptions::run`], keeping only the samples `keep` names (a fit that reads
+    /// every 5th sample need not store the others): exactly those samples of the full run.
+    pub fn run_kept(
+        &self,
+        dt_us: u32,
+        effects: Effects,
+        inputs: &[Inputs],
+        channels: &[Channel],
+        keep: Keep,
+    ) -> Result<Vec<Vec<f32>>, TwinError> {
         let mut model = self.model(dt_us, effects)?;
-        let mut out: Vec<Vec<f32>> = channels.iter().map(|_| Vec::with_capacity(inputs.len())).collect();
+        let mut rec = self.sensors.recorder(channels, f64::from(dt_us) * 1e-6, inputs.len(), keep);
         for inp in inputs {
             let o = model.step(inp);
-            for (v, c) in out.iter_mut().zip(channels) {
-                v.push(o.get(*c));
-            }
+            rec.record(|c| o.get(c));
         }
-        self.sensors.apply(&mut out, channels, f64::from(dt_us) * 1e-6);
-        Ok(out)
+        Ok(rec.finish())
     }
 }

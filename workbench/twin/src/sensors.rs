@@ -57,51 +57,126 @@ impl SensorModel {
         (ppr > 0 && self.speed_window_s > 0.0).then(|| 60.0 / (f64::from(ppr) * self.speed_window_s))
     }
 
-    /// Record the simulated `channels` (`out[i]` is `channels[i]`, one value per step of
-    /// `dt_s`) as the bench would: speed channels window-averaged, the rest unchanged.
-    pub fn apply(&self, out: &mut [Vec<f32>], channels: &[Channel], dt_s: f64) {
+    /// A recorder of `channels` as the bench would record them, one value per step of
+    /// `dt_s`, keeping the samples `keep` names: speed channels window-averaged, the rest
+    /// as simulated.
+    pub fn recorder(&self, channels: &[Channel], dt_s: f64, steps: usize, keep: Keep) -> Recorder {
         let half = half_width(self.speed_window_s, dt_s);
-        if half == 0 {
-            return;
-        }
-        for (v, c) in out.iter_mut().zip(channels) {
-            if SPEED_CHANNELS.contains(c) {
-                *v = window_average(v, dt_s, half);
-            }
+        let kept = keep.count(steps);
+        let tracks = channels
+            .iter()
+            .map(|c| {
+                if half > 0 && SPEED_CHANNELS.contains(c) {
+                    let mut angle = Vec::with_capacity(steps + 1);
+                    angle.push(0.0);
+                    Track::Counted { channel: *c, angle, prev: 0.0 }
+                } else {
+                    Track::Plain { channel: *c, kept: Vec::with_capacity(kept) }
+                }
+            })
+            .collect();
+        Recorder { tracks, half, dt: dt_s, keep, step: 0, next: keep.first }
+    }
+}
+
+/// Which samples of a run to keep: sample `first`, then every `stride`-th. The fits read
+/// a long run at a stride; only the kept samples are stored (and window-averaged).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Keep {
+    pub first: usize,
+    pub stride: usize,
+}
+
+impl Keep {
+    /// Every sample.
+    pub const ALL: Self = Self { first: 0, stride: 1 };
+
+    /// Kept samples of a run of `steps`.
+    pub fn count(&self, steps: usize) -> usize {
+        if self.first >= steps {
+            0
+        } else {
+            (steps - self.first).div_ceil(self.stride.max(1))
         }
     }
+}
+
+/// One channel being recorded.
+enum Track {
+    /// Stored as simulated, at the kept samples.
+    Plain { channel: Channel, kept: Vec<f32> },
+    /// Counted by an encoder: the angle (trapezoidal, from rest at t = 0) at every step,
+    /// averaged over the window at the kept samples when the run ends.
+    Counted { channel: Channel, angle: Vec<f64>, prev: f64 },
+}
+
+/// Records a run step by step ([`SensorModel::recorder`]).
+pub struct Recorder {
+    tracks: Vec<Track>,
+    half: usize,
+    dt: f64,
+    keep: Keep,
+    step: usize,
+    next: usize,
+}
+
+impl Recorder {
+    /// Record the next step, whose channel values `value` gives.
+    #[inline]
+    pub fn record(&mut self, value: impl Fn(Channel) -> f32) {
+        let keep = self.step == self.next;
+        for t in &mut self.tracks {
+            match t {
+                Track::Plain { channel, kept } => {
+                    if keep {
+                        kept.push(value(*channel));
+                    }
+                }
+                Track::Counted { channel, angle, prev } => {
+                    let v = f64::from(value(*channel));
+                    let last = angle.last().copied().unwrap_or(0.0);
+                    angle.push(last + 0.5 * (*prev + v) * self.dt);
+                    *prev = v;
+                }
+            }
+        }
+        if keep {
+            self.next += self.keep.stride.max(1);
+        }
+        self.step += 1;
+    }
+
+    /// The kept samples of every channel, in the order of the recorder's channels.
+    pub fn finish(self) -> Vec<Vec<f32>> {
+        let (half, dt, keep) = (self.half, self.dt, self.keep);
+        let n = self.step;
+        self.tracks
+            .into_iter()
+            .map(|t| match t {
+                Track::Plain { kept, .. } => kept,
+                Track::Counted { angle, .. } => (keep.first..n)
+                    .step_by(keep.stride.max(1))
+                    .map(|k| window_at(&angle, k, half, dt))
+                    .collect(),
+            })
+            .collect()
+    }
+}
+
+/// Window-averaged speed: sample `k` (end of step `k`) averages over `2 * half` steps
+/// centred on it, shortened at the ends of the run; `angle[j]` is the angle after `j`
+/// steps (`angle[0] = 0`).
+fn window_at(angle: &[f64], k: usize, half: usize, dt: f64) -> f32 {
+    let n = angle.len() - 1;
+    let c = k + 1;
+    let lo = c.saturating_sub(half);
+    let hi = (c + half).min(n);
+    ((angle[hi] - angle[lo]) / ((hi - lo) as f64 * dt)) as f32
 }
 
 /// The channels the bench measures by counting encoder pulses.
 pub const SPEED_CHANNELS: [Channel; 4] =
     [Channel::SuTMotorEnc, Channel::TKistlerL, Channel::TKistlerR, Channel::SiemensEnc];
-
-/// Window-averaged speed: sample `k` (end of step `k`) averages over `2 * half` steps
-/// centred on it, shortened at the ends of the run; the angle is integrated with the
-/// trapezoidal rule from rest at t = 0. `half = 0` returns the input.
-pub fn window_average(rpm: &[f32], dt: f64, half: usize) -> Vec<f32> {
-    if half == 0 {
-        return rpm.to_vec();
-    }
-    let n = rpm.len();
-    let mut angle = Vec::with_capacity(n + 1);
-    angle.push(0.0f64);
-    let mut prev = 0.0f64;
-    for &v in rpm {
-        let v = f64::from(v);
-        let last = angle.last().copied().unwrap_or(0.0);
-        angle.push(last + 0.5 * (prev + v) * dt);
-        prev = v;
-    }
-    (0..n)
-        .map(|k| {
-            let c = k + 1;
-            let lo = c.saturating_sub(half);
-            let hi = (c + half).min(n);
-            ((angle[hi] - angle[lo]) / ((hi - lo) as f64 * dt)) as f32
-        })
-        .collect()
-}
 
 /// Window half-width in samples for a window of `window_s` at step `dt`.
 pub fn half_width(window_s: f64, dt: f64) -> usize {
@@ -131,11 +206,50 @@ mod tests {
             prev = f64::from(v);
         }
         let enc = windowed_rpm(&counts, 1_000_000, dt, 50);
-        let avg = window_average(&rpm, dt, 50);
+        let avg = recorded(&rpm, dt, Keep::ALL);
         for (k, (a, b)) in enc.iter().zip(&avg).enumerate() {
             assert!((a - f64::from(*b)).abs() < 1e-3, "k={k}: encoder {a} vs average {b}");
         }
         // A ramp's centred average is the ramp itself away from its corners.
         assert!((avg[500] - 100.0).abs() < 0.11, "{}", avg[500]);
+    }
+
+    /// A speed and a plain channel through the bench's sensors (0.1 s window), keeping
+    /// the samples `keep` names.
+    fn recorded_pair(rpm: &[f32], dt: f64, keep: Keep) -> Vec<Vec<f32>> {
+        let chans = [Channel::SuTMotorEnc, Channel::IDc];
+        let mut r = SensorModel::counting(0.1).recorder(&chans, dt, rpm.len(), keep);
+        for (k, v) in rpm.iter().enumerate() {
+            r.record(|c| if c == Channel::IDc { k as f32 } else { *v });
+        }
+        r.finish()
+    }
+
+    fn recorded(rpm: &[f32], dt: f64, keep: Keep) -> Vec<f32> {
+        recorded_pair(rpm, dt, keep).swap_remove(0)
+    }
+
+    /// Keeping every `stride`-th sample from `first` gives exactly those samples of the
+    /// full record, windowed speeds included (the windows still see every step).
+    #[test]
+    fn a_strided_record_is_the_full_record_strided() {
+        let rpm: Vec<f32> = (0..1003).map(|k| (k as f32 * 0.013).sin() * 300.0 + (k % 7) as f32).collect();
+        let full = recorded_pair(&rpm, 1e-3, Keep::ALL);
+        for keep in
+            [Keep { first: 0, stride: 5 }, Keep { first: 3, stride: 25 }, Keep { first: 1002, stride: 4 }]
+        {
+            let part = recorded_pair(&rpm, 1e-3, keep);
+            for (f, p) in full.iter().zip(&part) {
+                let want: Vec<u32> =
+                    f.iter().skip(keep.first).step_by(keep.stride).map(|v| v.to_bits()).collect();
+                let got: Vec<u32> = p.iter().map(|v| v.to_bits()).collect();
+                assert_eq!(got, want, "{keep:?}");
+                assert_eq!(p.len(), keep.count(rpm.len()));
+            }
+        }
+        assert_eq!(recorded_pair(&rpm, 1e-3, Keep { first: 1003, stride: 2 })[0].len(), 0);
+        // The plain channel is stored as given; the speed is averaged (a different value).
+        assert_eq!(full[1][10], 10.0);
+        assert_ne!(full[0][10].to_bits(), rpm[10].to_bits());
     }
 }
