@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! cargo build --release -p workbench --bin simrod
-//! cargo run --release -p workbench --example blind_loop -- [--cases N] [--first SEED] [--check] [--keep DIR]
+//! cargo run --release -p workbench --example blind_loop -- [--cases N] [--first SEED] [--jobs J] [--check] [--keep DIR]
 //! cargo run --release -p workbench --example blind_loop -- --replay DIR [--cases N] [--first SEED]
 //! ```
 //!
@@ -45,7 +45,10 @@
 //! hidden claims nothing >= 98 %, coverage 90-99 %). `--keep DIR` keeps each case's
 //! files (runs, truth, every round's JSON, effect files and data) in `DIR/SEED`;
 //! `--replay DIR` judges those kept rounds again without running a diagnosis (a change
-//! of the judge, or of `compare`, seen on the same decisions in minutes).
+//! of the judge, or of `compare`, seen on the same decisions in minutes). `--jobs J`
+//! (default 2) runs J cases at a time: the bench runs and comparisons of a case are
+//! single-threaded, so two cases keep both cores busy (the seconds column then counts
+//! the time the cases shared).
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -516,61 +519,91 @@ fn pct(a: usize, b: usize) -> String {
 fn main() {
     let n: u64 = arg("--cases").and_then(|v| v.parse().ok()).unwrap_or(200);
     let first: u64 = arg("--first").and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
+    let jobs: usize = arg("--jobs").and_then(|v| v.parse().ok()).unwrap_or(2).max(1);
     let check = std::env::args().any(|a| a == "--check");
     let replay = arg("--replay").map(PathBuf::from);
     let keep = replay.clone().or_else(|| arg("--keep").map(PathBuf::from));
-    let mut outcomes = Vec::new();
     println!(
         "{:>9} {:<22} {:>4} {:>6} {:>6} {:>7}  last verdict",
         "seed", "class", "runs", "honest", "rounds", "s"
     );
-    for seed in first..first + n {
-        let dir = tempfile::tempdir().expect("a temporary directory");
-        let dir = match &keep {
-            Some(k) => {
-                let d = k.join(seed.to_string());
-                if let Err(e) = std::fs::create_dir_all(&d) {
-                    println!("{seed:>9} cannot make {}: {e}", d.display());
-                    continue;
+    // Cases are independent: `jobs` at a time, printed in seed order as they finish.
+    let next = std::sync::atomic::AtomicU64::new(first);
+    let (tx, rx) = std::sync::mpsc::channel::<(u64, String, Option<Outcome>)>();
+    let mut outcomes = Vec::new();
+    std::thread::scope(|scope| {
+        for _ in 0..jobs {
+            let (tx, next, keep, replay) = (tx.clone(), &next, keep.as_deref(), replay.is_some());
+            scope.spawn(move || loop {
+                let seed = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                if seed >= first + n {
+                    break;
                 }
-                Kept::At(d)
-            }
-            None => Kept::Temp(dir),
-        };
-        let case = match make_case(dir.path(), seed, replay.is_some()) {
-            Ok(c) => c,
-            Err(e) => {
-                println!("{seed:>9} the bench refused the case: {e}");
-                continue;
-            }
-        };
-        match judge(dir.path(), &case) {
-            Ok(o) => {
-                println!(
-                    "{:>9} {:<22} {:>4} {:>6} {:>6} {:>7.1}  {}{}{}",
-                    case.seed,
-                    o.class,
-                    case.runs.len(),
-                    if o.honest { "yes" } else { "NO" },
-                    format!("{}{}", o.rounds, if o.empirical { "E" } else { "" }),
-                    o.seconds,
-                    if o.miss { "[MISS] " } else { "" },
-                    if o.false_claim.is_empty() {
-                        String::new()
-                    } else {
-                        format!("[FALSE {:?}] ", o.false_claim)
-                    },
-                    o.last
-                );
-                if !o.why.is_empty() {
-                    println!("{:>9}   not honest: {}", "", o.why.join(", "));
+                let (text, o) = one_case(seed, keep, replay);
+                if tx.send((seed, text, o)).is_err() {
+                    break;
                 }
-                outcomes.push(o);
-            }
-            Err(e) => println!("{seed:>9} failed: {e}"),
+            });
         }
-    }
+        drop(tx);
+        let mut done = std::collections::BTreeMap::new();
+        let mut print_next = first;
+        for (seed, text, o) in rx {
+            done.insert(seed, (text, o));
+            while let Some((text, o)) = done.remove(&print_next) {
+                print!("{text}");
+                outcomes.extend(o);
+                print_next += 1;
+            }
+        }
+    });
     std::process::exit(i32::from(!summary(&outcomes) && check));
+}
+
+/// Make, run and judge the case of `seed`: its lines of the table, and its outcome.
+fn one_case(seed: u64, keep: Option<&Path>, replay: bool) -> (String, Option<Outcome>) {
+    let dir = match keep {
+        Some(k) => {
+            let d = k.join(seed.to_string());
+            if let Err(e) = std::fs::create_dir_all(&d) {
+                return (format!("{seed:>9} cannot make {}: {e}\n", d.display()), None);
+            }
+            Kept::At(d)
+        }
+        None => match tempfile::tempdir() {
+            Ok(t) => Kept::Temp(t),
+            Err(e) => return (format!("{seed:>9} no temporary directory: {e}\n"), None),
+        },
+    };
+    let case = match make_case(dir.path(), seed, replay) {
+        Ok(c) => c,
+        Err(e) => return (format!("{seed:>9} the bench refused the case: {e}\n"), None),
+    };
+    match judge(dir.path(), &case) {
+        Ok(o) => {
+            let mut text = format!(
+                "{:>9} {:<22} {:>4} {:>6} {:>6} {:>7.1}  {}{}{}\n",
+                case.seed,
+                o.class,
+                case.runs.len(),
+                if o.honest { "yes" } else { "NO" },
+                format!("{}{}", o.rounds, if o.empirical { "E" } else { "" }),
+                o.seconds,
+                if o.miss { "[MISS] " } else { "" },
+                if o.false_claim.is_empty() {
+                    String::new()
+                } else {
+                    format!("[FALSE {:?}] ", o.false_claim)
+                },
+                o.last
+            );
+            if !o.why.is_empty() {
+                text.push_str(&format!("{:>9}   not honest: {}\n", "", o.why.join(", ")));
+            }
+            (text, Some(o))
+        }
+        Err(e) => (format!("{seed:>9} failed: {e}\n"), None),
+    }
 }
 
 /// A case's directory: temporary, or kept for inspection (`--keep DIR`).
