@@ -47,10 +47,17 @@ impl Sensitivities {
 pub const SENSOR_EXCESS: f64 = 1.02;
 
 /// Whether `s` is worth a sensitivity run on this data: every physical parameter, and
-/// the chain parameters of channels with error above [`SENSOR_EXCESS`].
+/// the chain parameters of channels with error above [`SENSOR_EXCESS`]. Not the throttle
+/// voltage's gain: the pedal's volts per percent feed the controller as well as the
+/// recording, so a gain on the recorded voltage alone describes a wrong calibration
+/// without being its cause (tuning cases with the plant's calibration 0.5 % off claimed
+/// it); the throttle's delay, lag and offset are the acquisition's.
 fn worth_fitting(s: &ParamSpec, p: &Prepared, channels: &[Channel], energies: &[f64]) -> bool {
     if s.cause == s.effect {
         return true;
+    }
+    if s.effect == "sensor_gain" && Channel::from_key(s.param) == Some(Channel::Throttle) {
+        return false;
     }
     let n = p.idx.len().max(1) as f64;
     let fitted = Channel::from_key(s.param).and_then(|c| channels.iter().position(|k| *k == c));

@@ -261,8 +261,10 @@ impl ProfileProbe for BuiltinProbe {
     }
 }
 
-/// Channels the diagnosis fits: the bench's measured channels except the throttle
-/// voltage (it is an input, not a response).
+/// Channels the diagnosis fits: every channel the bench measures. The throttle voltage
+/// too: the twin runs on the recorded set points, so the recorded voltage is a response
+/// of the throttle's measurement chain, and a chain fault on it (a channel recorded
+/// 40 ms late) is found there or nowhere; no physical effect moves it.
 pub fn fitted_channels() -> Vec<Channel> {
-    model_core::MEASURED.iter().copied().filter(|c| *c != Channel::Throttle).collect()
+    model_core::MEASURED.to_vec()
 }
