@@ -127,14 +127,6 @@ impl Campaign {
 }
 
 impl Campaign {
-    /// Every run's channels, one run after another.
-    fn joined(
-        &self,
-        each: impl Fn(&RecordedTwin) -> Result<Vec<Vec<f32>>, String> + Sync,
-    ) -> Result<Vec<Vec<f32>>, String> {
-        self.joined_every(1, |r, _| each(r))
-    }
-
     /// Every `stride`-th sample of the joined runs, from the first: each run gives the
     /// samples it holds of that sequence (`keep`), and the runs simulate side by side.
     fn joined_every(
@@ -177,7 +169,7 @@ impl Twin for Campaign {
     }
 
     fn run(&self, fx: &Effects) -> Result<Vec<Vec<f32>>, String> {
-        self.joined(|r| r.run(fx))
+        self.joined_every(1, |r, keep| r.record(fx, keep))
     }
 
     fn run_every(&self, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
