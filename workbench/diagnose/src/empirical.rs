@@ -749,9 +749,8 @@ fn confirm(
     // On each run of a campaign too: a table that helps one run and harms another is
     // refused.
     if worse.is_none() {
-        worse = worse_somewhere(p, sim0, &after, rows, inp.o).map(|(c, f, k)| {
-            format!("it would make {} worse on run {} ({k:.2}x its RMSE)", inp.channels[c].name(), f + 1)
-        });
+        worse = worse_somewhere(p, sim0, &after, rows, inp.o)
+            .map(|(name, f, k)| format!("it would make {name} worse on run {} ({k:.2}x its RMSE)", f + 1));
     }
     // Capped at all of it: below the estimated noise level is noise, not more excess.
     let confirmed = ((b.energy - e_after) / excess).min(1.0);

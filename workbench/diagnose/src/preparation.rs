@@ -2,7 +2,7 @@
 //! channel's noise level (its weight `1/σ²`), and the error energies every later stage
 //! is measured against. Also the shared helpers that run the twin and weigh its output.
 
-use model_core::Effects;
+use model_core::{Channel, Effects};
 
 use simrod_compare::structure::noise_sigma;
 use simrod_io::progress::Progress;
@@ -25,6 +25,9 @@ pub(super) struct Prepared {
     pub weights: Vec<f64>,
     /// Estimated noise σ per channel, by name.
     pub noise: Vec<(&'static str, f64)>,
+    /// The powers the bench derives from the fitted channels: a change of the model
+    /// must not make them worse either (see [`worse_somewhere`]).
+    pub powers: Vec<DerivedPower>,
     /// The fit samples' positions in the series above (all of them, in order).
     pub idx: Vec<usize>,
     /// Samples of the run between fit samples: runs are read with
@@ -75,17 +78,20 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         .collect();
     let weights = noise.iter().map(|(_, s)| 1.0 / (s * s)).collect();
     let base_sim: Vec<Vec<f32>> = base_sim.into_iter().map(|c| every(c, stride)).collect();
+    let meas: Vec<Vec<f64>> = meas.iter().map(|m| every(m.clone(), stride)).collect();
+    let powers = derived_powers(channels, &meas, &noise);
     let base: Vec<Vec<f64>> = base_sim.iter().map(|c| c.iter().map(|v| f64::from(*v)).collect()).collect();
     let idx: Vec<usize> = (0..base.first().map_or(0, Vec::len)).collect();
     let segments = twin.segments();
     let folds = folds(&segments, stride, idx.len());
     let mut p = Prepared {
-        meas: meas.iter().map(|m| every(m.clone(), stride)).collect(),
+        meas,
         base_sim,
         base,
         regions: o.regions.iter().map(|(name, m)| (name.clone(), every(m.clone(), stride))).collect(),
         weights,
         noise,
+        powers,
         idx,
         stride,
         folds,
@@ -129,6 +135,52 @@ fn channel_sigma(m: &[f64], s: &[f32], h: usize) -> f64 {
     let r: Vec<f64> = m.iter().zip(s).map(|(a, b)| a - f64::from(*b)).collect();
     let rms = (m.iter().map(|v| v * v).sum::<f64>() / m.len().max(1) as f64).sqrt();
     noise_sigma(&r, h).max(1e-4 * rms).max(1e-9)
+}
+
+/// A power the bench derives from fitted channels ([`simrod_twin::POWERS`]), by their
+/// positions, with the weight `1/σ²` its inputs' noise gives it.
+pub(super) struct DerivedPower {
+    pub name: &'static str,
+    volts: usize,
+    amps: Vec<usize>,
+    factor: f64,
+    pub weight: f64,
+}
+
+impl DerivedPower {
+    /// The power of `series` (measured or simulated, `[channel][fit sample]`) at `t`.
+    pub fn at<T: Copy + Into<f64>>(&self, series: &[Vec<T>], t: usize) -> f64 {
+        let i: f64 = self.amps.iter().map(|&a| series[a][t].into()).sum();
+        self.factor * i * series[self.volts][t].into()
+    }
+}
+
+/// The derived powers whose inputs are all fitted, weighted by first-order propagation
+/// of the inputs' noise (`σ_P² = k²(ΣI)²σ_V² + k²V²Σσ_I²`, averaged over the run).
+fn derived_powers(
+    channels: &[Channel],
+    meas: &[Vec<f64>],
+    noise: &[(&'static str, f64)],
+) -> Vec<DerivedPower> {
+    let pos = |c: Channel| channels.iter().position(|&x| x == c);
+    simrod_twin::POWERS
+        .iter()
+        .filter_map(|pw| {
+            let volts = pos(pw.volts)?;
+            let amps: Vec<usize> = pw.amps.iter().map(|&a| pos(a)).collect::<Option<_>>()?;
+            let n = meas[volts].len().max(1) as f64;
+            let s_i2: f64 = amps.iter().map(|&a| noise[a].1.powi(2)).sum();
+            let var = (0..meas[volts].len())
+                .map(|t| {
+                    let i: f64 = amps.iter().map(|&a| meas[a][t]).sum();
+                    pw.factor.powi(2) * (i * i * noise[volts].1.powi(2) + meas[volts][t].powi(2) * s_i2)
+                })
+                .sum::<f64>()
+                / n;
+            let factor = pw.factor;
+            Some(DerivedPower { name: pw.channel.name(), volts, amps, factor, weight: 1.0 / var.max(1e-18) })
+        })
+        .collect()
 }
 
 /// One simulation's outcome: `[channel][sample]` or why it failed.
@@ -193,6 +245,9 @@ pub(super) const WORSE: f64 = 1.10;
 /// The first channel and run (0 for a single run) on which `after` has an RMSE more
 /// than [`WORSE`] times `before`'s, over the fit samples `rows`, by more than a chance
 /// change (`o.min_reduction_of_noise` of the noise energy there); with the factor.
+/// The channels are the fitted ones, then the powers the bench derives from them: a
+/// change that moves a voltage and a current a little each can make their product
+/// worse although neither is.
 /// Not "above the noise": a channel's noise level is estimated over the whole campaign,
 /// and one run's fast errors can raise it above another run's whole error.
 pub(super) fn worse_somewhere(
@@ -201,22 +256,31 @@ pub(super) fn worse_somewhere(
     after: &[Vec<f32>],
     rows: &[usize],
     o: &Options,
-) -> Option<(usize, usize, f64)> {
+) -> Option<(&'static str, usize, f64)> {
     let nf = p.runs.max(1);
     let run = |t: usize| if nf > 1 { p.folds.get(t).copied().unwrap_or(0).min(nf - 1) } else { 0 };
-    (0..p.meas.len()).find_map(|c| {
+    let worse = |w: f64, err: &dyn Fn(&[Vec<f32>], usize) -> f64| {
         let (mut e0, mut e1, mut n) = (vec![0.0; nf], vec![0.0; nf], vec![0usize; nf]);
         for &t in rows {
             let f = run(t);
-            e0[f] += p.weights[c] * (p.meas[c][t] - f64::from(before[c][t])).powi(2);
-            e1[f] += p.weights[c] * (p.meas[c][t] - f64::from(after[c][t])).powi(2);
+            e0[f] += w * err(before, t).powi(2);
+            e1[f] += w * err(after, t).powi(2);
             n[f] += 1;
         }
         (0..nf)
             .find(|&f| {
                 e1[f] > WORSE * WORSE * e0[f] && e1[f] - e0[f] > o.min_reduction_of_noise * n[f] as f64
             })
-            .map(|f| (c, f, (e1[f] / e0[f].max(1e-300)).sqrt()))
+            .map(|f| (f, (e1[f] / e0[f].max(1e-300)).sqrt()))
+    };
+    let fitted = (0..p.meas.len()).find_map(|c| {
+        let (name, _) = p.noise[c];
+        worse(p.weights[c], &|s, t| p.meas[c][t] - f64::from(s[c][t])).map(|(f, k)| (name, f, k))
+    });
+    fitted.or_else(|| {
+        p.powers.iter().find_map(|pw| {
+            worse(pw.weight, &|s, t| pw.at(&p.meas, t) - pw.at(s, t)).map(|(f, k)| (pw.name, f, k))
+        })
     })
 }
 
@@ -269,6 +333,44 @@ pub(super) mod tests {
         // Runs of 10 and 6 samples, every 2nd sample: 0,2,..,8 in run 1; 10,12,14 in run 2.
         assert_eq!(super::folds(&[10, 6], 2, 8), [0, 0, 0, 0, 0, 1, 1, 1]);
         assert_eq!(super::folds(&[100], 1, 10), [0, 0, 1, 1, 2, 2, 3, 3, 4, 4]);
+    }
+
+    /// A change that moves the inverter's voltage and current 1.05x each (under the
+    /// guard's 1.10x) but turns their cancelling errors into adding ones makes
+    /// P_SuT_inv = V_DC * I_DC worse: the guard names the power, and only the power.
+    #[test]
+    fn a_derived_power_made_worse_is_caught() {
+        use super::{derived_powers, worse_somewhere, Prepared};
+        use model_core::Channel;
+        let n = 200;
+        let channels = [Channel::VDc, Channel::IDc];
+        let meas = vec![vec![24.0; n], vec![100.0; n]];
+        let noise = vec![("V_DC", 0.01), ("I_DC", 0.1)];
+        let sim = |dv: f32, di: f32| vec![vec![24.0 * (1.0 + dv); n], vec![100.0 * (1.0 + di); n]];
+        let (before, after) = (sim(0.01, -0.01), sim(0.0105, 0.0105));
+        let mut p = Prepared {
+            powers: derived_powers(&channels, &meas, &noise),
+            meas,
+            base_sim: before.clone(),
+            base: Vec::new(),
+            regions: Vec::new(),
+            weights: noise.iter().map(|(_, s)| 1.0 / (s * s)).collect(),
+            noise,
+            idx: (0..n).collect(),
+            stride: 1,
+            folds: vec![0; n],
+            runs: 1,
+            e0: 0.0,
+            e_noise: 0.0,
+            excess: 0.0,
+            excess_ratio: 0.0,
+        };
+        let o = super::Options::default();
+        let (name, run, k) = worse_somewhere(&p, &before, &after, &p.idx, &o).expect("the power is worse");
+        assert_eq!((name, run), ("P_SuT_inv", 0));
+        assert!(k > 10.0, "{k}");
+        p.powers.clear();
+        assert!(worse_somewhere(&p, &before, &after, &p.idx, &o).is_none());
     }
 
     /// Standard normal draws, deterministic per seed.

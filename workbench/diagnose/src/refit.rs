@@ -327,6 +327,7 @@ mod tests {
             regions: Vec::new(),
             weights: vec![1.0],
             noise: vec![("Throttle", 1.0)],
+            powers: Vec::new(),
             idx: (0..n).collect(),
             stride: 1,
             folds: vec![0; n],

@@ -23,8 +23,8 @@ use model_core::{
 };
 
 pub use measured::{
-    check_budget, grid_samples, Aligned, InputSource, MeasuredTwin, Paired, RunGrid, TwinError,
-    FALLBACK_DT_US,
+    check_budget, grid_samples, Aligned, InputSource, MeasuredTwin, Paired, Power, RunGrid, TwinError,
+    FALLBACK_DT_US, POWERS,
 };
 pub use replay::Physical;
 pub use sensors::{Keep, SensorModel};

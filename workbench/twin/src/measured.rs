@@ -429,40 +429,70 @@ fn profile_set_points(
     Ok(out)
 }
 
-/// Derived power channels, computed from measured channels exactly as the twin's
-/// outputs define them (thesis 5.13), on both sides; only those whose inputs exist.
+/// A power the bench derives from measured channels (thesis 5.13):
+/// `factor × ΣI × V`, the same product the model computes for its output.
+pub struct Power {
+    pub channel: Channel,
+    pub volts: Channel,
+    /// Currents summed before the product.
+    pub amps: &'static [Channel],
+    /// Legs the current stands for (the right load motor's inverter measures one of two).
+    pub factor: f64,
+}
+
+impl Power {
+    /// The power for voltage `v` and summed current `amps`.
+    pub fn of(&self, v: f64, amps: f64) -> f64 {
+        self.factor * amps * v
+    }
+}
+
+/// The powers a bench run can derive, each once. (The connector loss needs the busbar
+/// and inverter voltages on one time base; the bench does not derive it.)
+pub const POWERS: [Power; 4] = [
+    Power { channel: Channel::PDpu, volts: Channel::VDcBusbars, amps: &[Channel::IDpu27], factor: 1.0 },
+    Power { channel: Channel::PSutInv, volts: Channel::VDc, amps: &[Channel::IDc], factor: 1.0 },
+    Power {
+        channel: Channel::PLml,
+        volts: Channel::VDcBusbars,
+        amps: &[Channel::IXlml22, Channel::IXlmlBu1],
+        factor: 1.0,
+    },
+    Power { channel: Channel::PLmr, volts: Channel::VDcBusbars, amps: &[Channel::IXlmr23], factor: 2.0 },
+];
+
+/// Derived power channels ([`POWERS`]), computed from measured channels exactly as the
+/// twin's outputs define them, on both sides; only those whose inputs exist.
 pub fn derive_powers(channels: &[Paired]) -> Vec<Paired> {
     let get = |c: Channel| channels.iter().find(|p| p.name == c.name());
-    let mut out = Vec::new();
-    let mut push = |c: Channel, f: &dyn Fn(bool, usize) -> f64, n: usize| {
-        out.push(Paired {
-            name: c.name().to_string(),
-            unit: c.unit().to_string(),
-            derived: true,
-            meas: (0..n).map(|k| f(false, k)).collect(),
-            sim: (0..n).map(|k| f(true, k)).collect(),
-        });
-    };
-    let at = |p: &Paired, sim: bool, k: usize| {
+    let n = channels.first().map_or(0, |p| p.meas.len());
+    let side = |p: &Paired, sim: bool, k: usize| {
         let v = if sim { &p.sim } else { &p.meas };
         v.get(k).copied().unwrap_or(f64::NAN)
     };
-    let n = channels.first().map_or(0, |p| p.meas.len());
-    if let (Some(v), Some(i)) = (get(Channel::VDcBusbars), get(Channel::IDpu27)) {
-        push(Channel::PDpu, &|s, k| at(v, s, k) * at(i, s, k), n);
-    }
-    if let (Some(v), Some(i)) = (get(Channel::VDc), get(Channel::IDc)) {
-        push(Channel::PSutInv, &|s, k| at(v, s, k) * at(i, s, k), n);
-    }
-    if let (Some(v), Some(a), Some(b)) =
-        (get(Channel::VDcBusbars), get(Channel::IXlml22), get(Channel::IXlmlBu1))
-    {
-        push(Channel::PLml, &|s, k| (at(a, s, k) + at(b, s, k)) * at(v, s, k), n);
-    }
-    if let (Some(v), Some(i)) = (get(Channel::VDcBusbars), get(Channel::IXlmr23)) {
-        push(Channel::PLmr, &|s, k| 2.0 * at(i, s, k) * at(v, s, k), n);
-    }
-    out
+    POWERS
+        .iter()
+        .filter_map(|pw| {
+            let v = get(pw.volts)?;
+            let amps: Vec<&Paired> = pw.amps.iter().map(|&a| get(a)).collect::<Option<_>>()?;
+            let (first, rest) = amps.split_first()?;
+            let series = |sim: bool| -> Vec<f64> {
+                (0..n)
+                    .map(|k| {
+                        let i = rest.iter().fold(side(first, sim, k), |s, a| s + side(a, sim, k));
+                        pw.of(side(v, sim, k), i)
+                    })
+                    .collect()
+            };
+            Some(Paired {
+                name: pw.channel.name().to_string(),
+                unit: pw.channel.unit().to_string(),
+                derived: true,
+                meas: series(false),
+                sim: series(true),
+            })
+        })
+        .collect()
 }
 
 #[cfg(test)]
