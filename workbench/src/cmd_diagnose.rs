@@ -641,7 +641,8 @@ fn kind_name(k: &VerdictKind) -> &'static str {
 /// `{"source", "kind", "verdict", "excess_ratio", "ranking": [{"effect", "params":
 /// {name: value}, "uncertainty": {name: std}, "ci95": {name: [lo, hi]}, "units",
 /// "error_reduction", "predicted_reduction", "confirmed_reduction", "significant",
-/// "cause": "sensor"|"physical", "moves": [channel], "leaves_structure", "channels": [...]}], "selected", "confounded", "unexplained", "noise": {channel: σ},
+/// "cause": "sensor"|"physical", "moves": [channel], "leaves_structure", "drift": null or
+/// {"param", "first", "last"}, "channels": [...]}], "selected", "confounded", "unexplained", "noise": {channel: σ},
 /// "proposed_effects": TOML text or null, "setup", "timing_s"}`. NaN becomes null.
 pub fn to_json(d: &Diagnosed) -> Value {
     let g = &d.diagnosis;
@@ -665,6 +666,7 @@ pub fn to_json(d: &Diagnosed) -> Value {
                 "cause": if c.is_sensor() { "sensor" } else { "physical" },
                 "moves": c.moves,
                 "leaves_structure": c.leaves_structure,
+                "drift": c.drift,
                 "channels": c.channels,
                 "regions": c.regions,
             })

@@ -26,13 +26,15 @@ use model_core::{Channel, Effects, Params, SetPoints};
 use simrod_io::datadir::ModelData;
 
 use super::confounding::{confounded_groups, Leaders};
+use super::constancy::drift;
+pub use super::constancy::Drift;
 use super::empirical::{correct, Empirical, Inputs as EmpiricalInputs};
 use super::library::ParamSpec;
 use super::preparation::{prepare, Prepared};
 use super::refit::{confirm, refit, Fit};
 use super::selection::{greedy, refit_list, score_effects};
 use super::sensitivities::{sensitivities, Sensitivities};
-use super::uncertainty::parameter_std;
+use super::uncertainty::{parameter_std, Spread};
 use super::verdict::{
     conclude, rank, structure_in, table_beats_library, Evidence, Verdict, PREFER_TABLE_MARGIN,
 };
@@ -212,6 +214,9 @@ pub struct Candidate {
     pub predicted_reduction: f64,
     /// The same, measured on the simulator after the refit.
     pub confirmed_reduction: Option<f64>,
+    /// Weighted squared error after the refit: what tells two candidates apart that both
+    /// remove all of the excess (a delay and a lag on a slow channel).
+    pub energy_after: Option<f64>,
     /// Some parameter differs from its start by more than 2 (finite) standard deviations.
     pub significant: bool,
     /// Per-channel errors.
@@ -224,6 +229,9 @@ pub struct Candidate {
     /// After its refit, whether structure is left in some channel's residual (`None`:
     /// not refitted).
     pub leaves_structure: Option<bool>,
+    /// After its refit, a parameter whose value changes steadily over the run: not a
+    /// constant effect but the average of a time-varying one.
+    pub drift: Option<Drift>,
 }
 
 /// Share of a candidate's weighted sensitivity a channel must carry to count as moved.
@@ -467,6 +475,8 @@ pub(super) struct SetFit {
     pub fit: Fit,
     /// σ of each parameter.
     pub std: Vec<f64>,
+    /// A member's parameter that drifts over the run ([`Candidate::drift`]).
+    pub drift: Option<Drift>,
 }
 
 /// The selected set (when it has two or more effects) refitted jointly, from the joint
@@ -488,12 +498,16 @@ fn joint_fit(
     let start: Vec<f64> = ix.iter().zip(&th).map(|(&i, t)| s.starts[i] + t * s.steps[i]).collect();
     let sp: Vec<&ParamSpec> = ix.iter().map(|&i| &s.specs[i]).collect();
     let fit = refit(twin, p, o, &sp, &start)?;
-    let std = parameter_std(p, &fit, &sp, twin.dt_s());
+    let spread = parameter_std(p, &fit, &sp, twin.dt_s());
+    let starts: Vec<f64> = ix.iter().map(|&i| s.starts[i]).collect();
+    let drift = drift(p, &fit, &sp, &starts, &spread.noise);
+    let std = spread.std;
     Some(SetFit {
         effects: groups.iter().map(|&g| s.groups[g].0).collect(),
         specs: sp.into_iter().cloned().collect(),
         fit,
         std,
+        drift,
     })
 }
 
@@ -511,7 +525,7 @@ fn confirm_leaders(
     let specs = |ci: usize| -> Vec<&ParamSpec> { s.groups[ci].1.iter().map(|&i| &s.specs[i]).collect() };
     // The refits are independent: on the pool side by side (each one's own batches of
     // simulations share the pool), in list order.
-    let done: Vec<(usize, Fit, Vec<f64>)> = list
+    let done: Vec<(usize, Fit, Spread)> = list
         .par_iter()
         .filter_map(|&ci| {
             let sp = specs(ci);
@@ -522,8 +536,10 @@ fn confirm_leaders(
         })
         .collect();
     let mut fits = Vec::with_capacity(done.len());
-    for (ci, fit, std) in done {
-        confirm(&mut cands[ci], &fit, &std, &specs(ci), p);
+    for (ci, fit, spread) in done {
+        let starts: Vec<f64> = cands[ci].params.iter().map(|f| f.start).collect();
+        cands[ci].drift = drift(p, &fit, &specs(ci), &starts, &spread.noise);
+        confirm(&mut cands[ci], &fit, &spread.std, &specs(ci), p);
         fits.push((ci, fit));
     }
     fits

@@ -11,6 +11,7 @@ pub mod twin;
 
 // The stages of `engine::diagnose`, in order.
 mod confounding;
+mod constancy;
 mod locate;
 mod preparation;
 mod refit;

@@ -248,6 +248,7 @@ fn profile_scan(pb: &Problem, s0: &ParamSpec, fit: &mut Fit) {
 /// parameter moved from its start by more than 2 σ (never with an undetermined σ).
 pub(super) fn confirm(cand: &mut Candidate, fit: &Fit, std: &[f64], specs: &[&ParamSpec], p: &Prepared) {
     cand.confirmed_reduction = Some(((p.e0 - fit.energy) / p.excess).clamp(0.0, 1.0));
+    cand.energy_after = Some(fit.energy);
     cand.significant = false;
     for ((fp, &v), (sd, s)) in cand.params.iter_mut().zip(&fit.values).zip(std.iter().zip(specs)) {
         fp.value = v;
@@ -406,6 +407,8 @@ mod tests {
             regions: Vec::new(),
             moves: Vec::new(),
             leaves_structure: None,
+            drift: None,
+            energy_after: None,
         };
         for (sd, significant) in [(f64::INFINITY, false), (f64::NAN, false), (0.1, true), (3.0, false)] {
             confirm(&mut cand, &fit, &[sd], &[&sa], &p);

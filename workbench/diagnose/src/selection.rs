@@ -79,6 +79,8 @@ pub(super) fn score_effects(
                 }),
                 moves: moved_channels(s, channels, ix),
                 leaves_structure: None,
+                drift: None,
+                energy_after: None,
             };
             (cand, th)
         })

@@ -26,10 +26,19 @@ use super::refit::Fit;
 use super::sensitivities::normal_equations_by;
 use simrod_numerics::stats::moving_mean;
 
+/// A refit's parameter standard deviations.
+pub(super) struct Spread {
+    /// What is reported: the larger of the sandwich and the fold jackknife, widened for
+    /// one parameter by its profile, never below the parameter's quantisation.
+    pub std: Vec<f64>,
+    /// The sandwich's alone: what noise alone moves the estimates by.
+    pub noise: Vec<f64>,
+}
+
 /// Standard deviations of a refit's parameters: the sandwich covariance (noise level over
 /// 1 s, correlations up to 2 s), widened for one parameter by its profile, and never below
 /// the quantisation of a parameter the model realises in steps.
-pub(super) fn parameter_std(p: &Prepared, fit: &Fit, specs: &[&ParamSpec], dt: f64) -> Vec<f64> {
+pub(super) fn parameter_std(p: &Prepared, fit: &Fit, specs: &[&ParamSpec], dt: f64) -> Spread {
     let level_win = ((1.0 / (dt * p.stride as f64)).round() as usize).max(3);
     let resid: Vec<Vec<f64>> = p
         .meas
@@ -37,7 +46,8 @@ pub(super) fn parameter_std(p: &Prepared, fit: &Fit, specs: &[&ParamSpec], dt: f
         .zip(&fit.sim)
         .map(|(m, s)| p.idx.iter().map(|&t| m[t] - f64::from(s[t])).collect())
         .collect();
-    let mut std = sandwich_std(&p.weights, &resid, &fit.jac, level_win, 2 * level_win);
+    let noise = sandwich_std(&p.weights, &resid, &fit.jac, level_win, 2 * level_win);
+    let mut std = noise.clone();
     let folds: Vec<usize> = p.idx.iter().map(|&t| p.folds.get(t).copied().unwrap_or(0)).collect();
     if let Some(jack) = fold_jackknife_std(&p.weights, &resid, &fit.jac, &folds) {
         for (sd, j) in std.iter_mut().zip(jack) {
@@ -55,7 +65,7 @@ pub(super) fn parameter_std(p: &Prepared, fit: &Fit, specs: &[&ParamSpec], dt: f
         let q = sp.quantum(dt);
         *sd = (*sd * *sd + q * q / 12.0).sqrt();
     }
-    std
+    Spread { std, noise }
 }
 
 /// Least share of a parameter's information (`Gᵢᵢ`) the other folds must hold for a

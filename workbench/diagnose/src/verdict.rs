@@ -17,16 +17,18 @@ use simrod_compare::structure;
 /// Refitted and significant candidates first: those whose refit leaves no structure in
 /// any channel before those that leave some (an offset and a gain on one channel may
 /// remove about the same energy, but only the true one leaves nothing at standstill),
-/// then by confirmed reduction; then the rest.
+/// then by confirmed reduction, and where that is all of the excess for both, by the
+/// error left (the reduction is capped at all of it); then the rest.
 pub(super) fn rank(cands: &[Candidate]) -> Vec<Candidate> {
     let key = |c: &Candidate| {
         let counted = c.confirmed_reduction.is_some() && c.significant;
         (counted, counted && c.leaves_structure == Some(false), c.reduction())
     };
+    let left = |c: &Candidate| c.energy_after.unwrap_or(f64::INFINITY);
     let mut ranking = cands.to_vec();
     ranking.sort_by(|a, b| {
         let (ka, kb) = (key(a), key(b));
-        kb.0.cmp(&ka.0).then(kb.1.cmp(&ka.1)).then(kb.2.total_cmp(&ka.2))
+        kb.0.cmp(&ka.0).then(kb.1.cmp(&ka.1)).then(kb.2.total_cmp(&ka.2)).then(left(a).total_cmp(&left(b)))
     });
     ranking
 }
@@ -77,11 +79,13 @@ impl Evidence<'_> {
 
     /// A candidate counts when it is significant, its refit removed at least
     /// `min_reduction_of_noise` of the noise energy, it is not a one-channel cause that
-    /// only absorbs part of what else is wrong on its channel ([`Self::absorbs`]), and
-    /// it makes no channel worse on any run ([`Self::worse_somewhere`]).
+    /// only absorbs part of what else is wrong on its channel ([`Self::absorbs`]), its
+    /// value does not drift over the run ([`Candidate::drift`]), and it makes no channel
+    /// worse on any run ([`Self::worse_somewhere`]).
     fn counts(&self, c: &Candidate) -> bool {
         let floor = self.o.min_reduction_of_noise * self.p.e_noise;
         c.significant
+            && c.drift.is_none()
             && self.after(c.effect).is_some_and(|f| {
                 self.p.e0 - f.energy >= floor && !self.absorbs(c, &f.sim) && !self.worse_somewhere(&f.sim)
             })
@@ -283,6 +287,10 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
             (VerdictKind::Unexplained, unexplained_sentence(ev.ranking.first(), &loc), Some(loc))
         }
     };
+    let sentence = match drifting(ev, lead) {
+        Some(note) if kind != VerdictKind::NothingMissing => format!("{sentence}; {note}"),
+        _ => sentence,
+    };
     let lead = match kind {
         VerdictKind::Missing | VerdictKind::Partial => lead.map(|l| l.effect),
         _ => None,
@@ -304,7 +312,8 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     }
     // A sensor member that leaves its channel above the noise only absorbs error there.
     let member = |e: &&'static str| ev.cands.iter().find(|c| c.effect == *e);
-    if set.effects.iter().filter_map(member).any(|c| ev.absorbs(c, &set.fit.sim))
+    if set.effects.iter().filter_map(member).any(|c| ev.absorbs(c, &set.fit.sim) || c.drift.is_some())
+        || set.drift.is_some()
         || ev.worse_somewhere(&set.fit.sim)
     {
         return None;
@@ -459,6 +468,18 @@ fn unexplained_sentence(best: Option<&Candidate>, loc: &Location) -> String {
     )
 }
 
+/// The best candidate ranked above `lead` (or any, without one) that was refused because
+/// its value drifts, said as what it is.
+fn drifting(ev: &Evidence, lead: Option<&Candidate>) -> Option<String> {
+    let stop = lead.map(|l| l.effect);
+    let c = ev.ranking.iter().take_while(|c| Some(c.effect) != stop).find(|c| c.drift.is_some())?;
+    let d = c.drift.as_ref()?;
+    Some(format!(
+        "{} fits only as a value that drifts over the run ({} {:.4} in its first fifth, {:.4} in its last): a time-varying effect (a warm-up, a thermal drift), not a constant one",
+        c.effect, d.param, d.first, d.last
+    ))
+}
+
 /// `effect (param = value ± 95 % half-width unit, …)`.
 fn describe(l: &Candidate) -> String {
     let params: Vec<String> = l
@@ -535,5 +556,32 @@ mod tests {
         assert_eq!(worst_window(&m, &s, 5), (40, 5));
         // A window longer than the series is the whole series.
         assert_eq!(worst_window(&m, &s, 500), (0, 100));
+    }
+
+    /// A lag listed before a delay in the library, both removing all of the excess: the
+    /// one that leaves less error ranks first, in either order; a reduction still
+    /// outranks the error left.
+    #[test]
+    fn a_tie_at_all_of_the_excess_goes_to_the_better_fit() {
+        let cand = |effect: &'static str, reduction: f64, energy: f64| Candidate {
+            effect,
+            params: Vec::new(),
+            predicted_reduction: reduction,
+            confirmed_reduction: Some(reduction),
+            energy_after: Some(energy),
+            significant: true,
+            channels: Vec::new(),
+            regions: Vec::new(),
+            moves: vec!["SuTMotorEnc"],
+            leaves_structure: Some(false),
+            drift: None,
+        };
+        let names = |r: Vec<Candidate>| r.iter().map(|c| c.effect).collect::<Vec<_>>();
+        let (lag, delay) =
+            (cand("sensor_lag.sutmotorenc", 1.0, 1210.0), cand("sensor_delay.sutmotorenc", 1.0, 1180.0));
+        assert_eq!(names(rank(&[lag.clone(), delay.clone()]))[0], "sensor_delay.sutmotorenc");
+        assert_eq!(names(rank(&[delay, lag.clone()]))[0], "sensor_delay.sutmotorenc");
+        let partial = cand("controller_delay", 0.9, 100.0);
+        assert_eq!(names(rank(&[partial, lag]))[0], "sensor_lag.sutmotorenc");
     }
 }
