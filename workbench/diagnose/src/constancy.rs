@@ -8,13 +8,14 @@
 
 use super::library::ParamSpec;
 use super::linalg::solve_spd;
-use super::preparation::Prepared;
+use super::preparation::{Prepared, TIME_FOLDS};
 use super::refit::Fit;
 use super::sensitivities::normal_equations_by;
 
-/// Stretches each run is cut into (the same fifths in every run of a campaign, so that
-/// a warm-up that restarts with each run adds up instead of cancelling).
-const STRETCHES: usize = 5;
+/// Stretches each run is cut into: a single run's held-out folds, and the same fifths
+/// in every run of a campaign, so that a warm-up that restarts with each run adds up
+/// instead of cancelling.
+const STRETCHES: usize = TIME_FOLDS;
 
 /// Largest σ of a stretch's own estimate, as a share of the parameter's departure from
 /// where it started, for the stretch to count: a stretch at rest does not estimate a
@@ -39,21 +40,21 @@ pub struct Drift {
     pub last: f64,
 }
 
-/// The first parameter of `fit` (σ from noise alone `std`, the sandwich's) that drifts: its stretch estimates are
-/// monotone within their noise, their linear trend is at least [`MIN_Z`] standard errors
+/// The first parameter of `fit` (residual `resid[channel][fit sample]`, σ from noise
+/// alone `std`, the sandwich's) that drifts: its stretch estimates are monotone within their noise, their linear trend is at least [`MIN_Z`] standard errors
 /// and their first-to-last change is at least [`MIN_SHARE`] of the departure from
 /// `starts` — also with the first or the last stretch left out, so that one odd stretch
 /// (a start-up at low speed) is not taken for a drift.
 pub(super) fn drift(
     p: &Prepared,
+    resid: &[Vec<f64>],
     fit: &Fit,
     specs: &[&ParamSpec],
     starts: &[f64],
     std: &[f64],
 ) -> Option<Drift> {
     let stretch = stretches(p);
-    let resid = |c: usize, t: usize| p.meas[c][p.idx[t]] - f64::from(fit.sim[c][p.idx[t]]);
-    let (g, b) = normal_equations_by(&p.weights, &fit.jac, resid, STRETCHES, |_, t| stretch[t]);
+    let (g, b) = normal_equations_by(&p.weights, &fit.jac, |c, t| resid[c][t], STRETCHES, |_, t| stretch[t]);
     let n = fit.jac.len();
     let total: Vec<f64> = (0..n * n).map(|x| g.iter().map(|gs| gs[x]).sum()).collect();
     (0..n).find_map(|i| {
@@ -190,7 +191,8 @@ mod tests {
                 unit: "-",
             };
             let sd = 0.01 / x.iter().map(|v| v * v).sum::<f64>().sqrt();
-            drift(&p, &fit, &[&spec], &[1.0], &[sd])
+            let resid = vec![(0..n).map(|t| p.meas[0][t] - f64::from(fit.sim[0][t])).collect()];
+            drift(&p, &resid, &fit, &[&spec], &[1.0], &[sd])
         };
         let d = case(&|t| 1.0 - 0.2 * t as f64 / n as f64).expect("a warm-up drifts");
         assert!(d.first > d.last && d.first - d.last > 0.1, "{d:?}");

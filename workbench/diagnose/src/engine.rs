@@ -26,7 +26,6 @@ use model_core::{Channel, Effects, Params, SetPoints};
 use simrod_io::datadir::ModelData;
 
 use super::confounding::{confounded_groups, Leaders};
-use super::constancy::drift;
 pub use super::constancy::Drift;
 use super::empirical::{correct, Empirical, Inputs as EmpiricalInputs};
 use super::library::ParamSpec;
@@ -498,10 +497,8 @@ fn joint_fit(
     let start: Vec<f64> = ix.iter().zip(&th).map(|(&i, t)| s.starts[i] + t * s.steps[i]).collect();
     let sp: Vec<&ParamSpec> = ix.iter().map(|&i| &s.specs[i]).collect();
     let fit = refit(twin, p, o, &sp, &start)?;
-    let spread = parameter_std(p, &fit, &sp, twin.dt_s());
     let starts: Vec<f64> = ix.iter().map(|&i| s.starts[i]).collect();
-    let drift = drift(p, &fit, &sp, &starts, &spread.noise);
-    let std = spread.std;
+    let Spread { std, drift } = parameter_std(p, &fit, &sp, &starts, twin.dt_s());
     Some(SetFit {
         effects: groups.iter().map(|&g| s.groups[g].0).collect(),
         specs: sp.into_iter().cloned().collect(),
@@ -531,14 +528,15 @@ fn confirm_leaders(
             let sp = specs(ci);
             let start: Vec<f64> = cands[ci].params.iter().map(|f| f.value).collect();
             let fit = refit(twin, p, o, &sp, &start)?;
-            let std = parameter_std(p, &fit, &sp, twin.dt_s());
-            Some((ci, fit, std))
+            // The drift is measured from where the model stood, not from the linear guess.
+            let current: Vec<f64> = cands[ci].params.iter().map(|f| f.start).collect();
+            let spread = parameter_std(p, &fit, &sp, &current, twin.dt_s());
+            Some((ci, fit, spread))
         })
         .collect();
     let mut fits = Vec::with_capacity(done.len());
     for (ci, fit, spread) in done {
-        let starts: Vec<f64> = cands[ci].params.iter().map(|f| f.start).collect();
-        cands[ci].drift = drift(p, &fit, &specs(ci), &starts, &spread.noise);
+        cands[ci].drift = spread.drift;
         confirm(&mut cands[ci], &fit, &spread.std, &specs(ci), p);
         fits.push((ci, fit));
     }

@@ -6,6 +6,7 @@ use model_core::{Channel, Effects};
 
 use simrod_compare::structure::noise_sigma;
 use simrod_io::progress::Progress;
+use simrod_twin::{Power, POWERS};
 
 use super::engine::{every, Options, RegionChange, Twin};
 
@@ -137,13 +138,12 @@ fn channel_sigma(m: &[f64], s: &[f32], h: usize) -> f64 {
     noise_sigma(&r, h).max(1e-4 * rms).max(1e-9)
 }
 
-/// A power the bench derives from fitted channels ([`simrod_twin::POWERS`]), by their
+/// A power the bench derives ([`simrod_twin::POWERS`]) from fitted channels, at their
 /// positions, with the weight `1/σ²` its inputs' noise gives it.
 pub(super) struct DerivedPower {
-    pub name: &'static str,
+    pub power: &'static Power,
     volts: usize,
     amps: Vec<usize>,
-    factor: f64,
     pub weight: f64,
 }
 
@@ -151,7 +151,7 @@ impl DerivedPower {
     /// The power of `series` (measured or simulated, `[channel][fit sample]`) at `t`.
     pub fn at<T: Copy + Into<f64>>(&self, series: &[Vec<T>], t: usize) -> f64 {
         let i: f64 = self.amps.iter().map(|&a| series[a][t].into()).sum();
-        self.factor * i * series[self.volts][t].into()
+        self.power.of(series[self.volts][t].into(), i)
     }
 }
 
@@ -163,22 +163,21 @@ fn derived_powers(
     noise: &[(&'static str, f64)],
 ) -> Vec<DerivedPower> {
     let pos = |c: Channel| channels.iter().position(|&x| x == c);
-    simrod_twin::POWERS
+    POWERS
         .iter()
-        .filter_map(|pw| {
-            let volts = pos(pw.volts)?;
-            let amps: Vec<usize> = pw.amps.iter().map(|&a| pos(a)).collect::<Option<_>>()?;
-            let n = meas[volts].len().max(1) as f64;
+        .filter_map(|power| {
+            let volts = pos(power.volts)?;
+            let amps: Vec<usize> = power.amps.iter().map(|&a| pos(a)).collect::<Option<_>>()?;
+            let s_v2 = noise[volts].1.powi(2);
             let s_i2: f64 = amps.iter().map(|&a| noise[a].1.powi(2)).sum();
             let var = (0..meas[volts].len())
                 .map(|t| {
                     let i: f64 = amps.iter().map(|&a| meas[a][t]).sum();
-                    pw.factor.powi(2) * (i * i * noise[volts].1.powi(2) + meas[volts][t].powi(2) * s_i2)
+                    power.factor.powi(2) * (i * i * s_v2 + meas[volts][t].powi(2) * s_i2)
                 })
                 .sum::<f64>()
-                / n;
-            let factor = pw.factor;
-            Some(DerivedPower { name: pw.channel.name(), volts, amps, factor, weight: 1.0 / var.max(1e-18) })
+                / meas[volts].len().max(1) as f64;
+            Some(DerivedPower { power, volts, amps, weight: 1.0 / var.max(1e-18) })
         })
         .collect()
 }
@@ -279,7 +278,8 @@ pub(super) fn worse_somewhere(
     });
     fitted.or_else(|| {
         p.powers.iter().find_map(|pw| {
-            worse(pw.weight, &|s, t| pw.at(&p.meas, t) - pw.at(s, t)).map(|(f, k)| (pw.name, f, k))
+            worse(pw.weight, &|s, t| pw.at(&p.meas, t) - pw.at(s, t))
+                .map(|(f, k)| (pw.power.channel.name(), f, k))
         })
     })
 }

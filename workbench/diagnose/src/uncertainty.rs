@@ -19,6 +19,7 @@
 //! variance negative.) A variance that is still not positive and finite — a parameter the
 //! run does not excite — makes the parameter undetermined (σ = ∞), never σ = 0.
 
+use super::constancy::{drift, Drift};
 use super::library::ParamSpec;
 use super::linalg::{quad, solve_spd};
 use super::preparation::Prepared;
@@ -26,19 +27,27 @@ use super::refit::Fit;
 use super::sensitivities::normal_equations_by;
 use simrod_numerics::stats::moving_mean;
 
-/// A refit's parameter standard deviations.
+/// How well a refit pins its parameters down, and whether they are constants.
 pub(super) struct Spread {
     /// What is reported: the larger of the sandwich and the fold jackknife, widened for
     /// one parameter by its profile, never below the parameter's quantisation.
     pub std: Vec<f64>,
-    /// The sandwich's alone: what noise alone moves the estimates by.
-    pub noise: Vec<f64>,
+    /// A parameter whose value walks over the run ([`drift`], on the sandwich's σ: what
+    /// noise alone moves the estimates by).
+    pub drift: Option<Drift>,
 }
 
-/// Standard deviations of a refit's parameters: the sandwich covariance (noise level over
-/// 1 s, correlations up to 2 s), widened for one parameter by its profile, and never below
-/// the quantisation of a parameter the model realises in steps.
-pub(super) fn parameter_std(p: &Prepared, fit: &Fit, specs: &[&ParamSpec], dt: f64) -> Spread {
+/// Standard deviations of a refit's parameters (started from `starts`): the sandwich
+/// covariance (noise level over 1 s, correlations up to 2 s), widened for one parameter
+/// by its profile, and never below the quantisation of a parameter the model realises in
+/// steps; and the drift test on the same residual.
+pub(super) fn parameter_std(
+    p: &Prepared,
+    fit: &Fit,
+    specs: &[&ParamSpec],
+    starts: &[f64],
+    dt: f64,
+) -> Spread {
     let level_win = ((1.0 / (dt * p.stride as f64)).round() as usize).max(3);
     let resid: Vec<Vec<f64>> = p
         .meas
@@ -46,8 +55,8 @@ pub(super) fn parameter_std(p: &Prepared, fit: &Fit, specs: &[&ParamSpec], dt: f
         .zip(&fit.sim)
         .map(|(m, s)| p.idx.iter().map(|&t| m[t] - f64::from(s[t])).collect())
         .collect();
-    let noise = sandwich_std(&p.weights, &resid, &fit.jac, level_win, 2 * level_win);
-    let mut std = noise.clone();
+    let mut std = sandwich_std(&p.weights, &resid, &fit.jac, level_win, 2 * level_win);
+    let drift = drift(p, &resid, fit, specs, starts, &std);
     let folds: Vec<usize> = p.idx.iter().map(|&t| p.folds.get(t).copied().unwrap_or(0)).collect();
     if let Some(jack) = fold_jackknife_std(&p.weights, &resid, &fit.jac, &folds) {
         for (sd, j) in std.iter_mut().zip(jack) {
@@ -65,7 +74,7 @@ pub(super) fn parameter_std(p: &Prepared, fit: &Fit, specs: &[&ParamSpec], dt: f
         let q = sp.quantum(dt);
         *sd = (*sd * *sd + q * q / 12.0).sqrt();
     }
-    Spread { std, noise }
+    Spread { std, drift }
 }
 
 /// Least share of a parameter's information (`Gᵢᵢ`) the other folds must hold for a
