@@ -77,18 +77,34 @@ impl Evidence<'_> {
         self.fits.iter().find(|(ci, _)| self.cands[*ci].effect == effect).map(|(_, f)| f)
     }
 
-    /// A candidate counts when it is significant, its refit removed at least
-    /// `min_reduction_of_noise` of the noise energy, it is not a one-channel cause that
-    /// only absorbs part of what else is wrong on its channel ([`Self::absorbs`]), its
-    /// value does not drift over the run ([`Candidate::drift`]), and it makes no channel
-    /// worse on any run ([`Self::worse_somewhere`]).
+    /// A candidate counts when it is significant and nothing refuses it ([`Self::refusal`]).
     fn counts(&self, c: &Candidate) -> bool {
-        let floor = self.o.min_reduction_of_noise * self.p.e_noise;
-        c.significant
-            && c.drift.is_none()
-            && self.after(c.effect).is_some_and(|f| {
-                self.p.e0 - f.energy >= floor && !self.absorbs(c, &f.sim) && !self.worse_somewhere(&f.sim)
-            })
+        c.significant && self.refusal(c).is_none()
+    }
+
+    /// Why a significant candidate is not proposed, said for the user: its value drifts
+    /// over the run ([`Candidate::drift`]), it was not refitted, its refit removed less
+    /// than `min_reduction_of_noise` of the noise energy, it is a one-channel cause that
+    /// only absorbs part of what else is wrong on its channel ([`Self::absorbs`]), or it
+    /// makes some channel worse on some run ([`worse_somewhere`]). `None`: it counts.
+    fn refusal(&self, c: &Candidate) -> Option<String> {
+        if let Some(d) = &c.drift {
+            return Some(format!("its {} drifts over the run", d.param));
+        }
+        let Some(f) = self.after(c.effect) else { return Some("it was not refitted".into()) };
+        if self.p.e0 - f.energy < self.o.min_reduction_of_noise * self.p.e_noise {
+            return Some("its refit removes less than a chance fit of the noise".into());
+        }
+        if self.absorbs(c, &f.sim) {
+            return Some(format!(
+                "it leaves {} above the noise, only absorbing part of what is wrong there",
+                c.moves.first().copied().unwrap_or("its channel")
+            ));
+        }
+        worse_somewhere(self.p, &self.p.base_sim, &f.sim, &self.p.idx, self.o).map(|(name, run, k)| {
+            let on = if self.p.runs > 1 { format!(" on run {}", run + 1) } else { String::new() };
+            format!("it makes {name} {k:.2}x worse{on}")
+        })
     }
 
     /// Whether `sim` makes some channel worse, on the run or on one run of a campaign
@@ -284,7 +300,9 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
         }
         _ => {
             let loc = ev.locate_rest(&ev.p.base_sim);
-            (VerdictKind::Unexplained, unexplained_sentence(ev.ranking.first(), &loc), Some(loc))
+            let best = ev.ranking.first();
+            let why = best.filter(|c| c.significant).and_then(|c| ev.refusal(c));
+            (VerdictKind::Unexplained, unexplained_sentence(best, why.as_deref(), &loc), Some(loc))
         }
     };
     let sentence = match drifting(ev, lead) {
@@ -459,11 +477,12 @@ fn partly_explained(l: &Candidate, ratio_after: f64, loc: &Location) -> String {
     )
 }
 
-fn unexplained_sentence(best: Option<&Candidate>, loc: &Location) -> String {
+fn unexplained_sentence(best: Option<&Candidate>, why: Option<&str>, loc: &Location) -> String {
     format!(
-        "unexplained: no effect in the library explains the residual (the best, {}, removes {:.0} %): {}",
+        "unexplained: no effect in the library explains the residual (the best, {}, removes {:.0} %{}): {}",
         best.map_or("none", |c| c.effect),
         100.0 * best.map_or(0.0, |c| c.reduction()),
+        why.map(|w| format!(", is not proposed: {w}")).unwrap_or_default(),
         place(loc)
     )
 }
@@ -583,5 +602,100 @@ mod tests {
         assert_eq!(names(rank(&[delay, lag.clone()]))[0], "sensor_delay.sutmotorenc");
         let partial = cand("controller_delay", 0.9, 100.0);
         assert_eq!(names(rank(&[partial, lag]))[0], "sensor_lag.sutmotorenc");
+    }
+    /// A physical candidate that removes most of V_DC's error but makes I_DC 1.2x worse
+    /// is not proposed, and the verdict says why; the same fit without the harm counts.
+    #[test]
+    fn a_refused_best_is_named_with_the_reason() {
+        use super::super::sensitivities::Sensitivities;
+        let n = 400;
+        let channels = [Channel::VDc, Channel::IDc];
+        let noise = vec![("V_DC", 0.01), ("I_DC", 0.1)];
+        let wave = |k: usize| (k as f64 * 0.05).sin();
+        let meas: Vec<Vec<f64>> = vec![(0..n).map(|k| 24.0 + 0.2 * wave(k)).collect(), vec![100.0; n]];
+        let sim = |v: f64, i: f64| -> Vec<Vec<f32>> {
+            vec![(0..n).map(|k| (24.0 + v * wave(k)) as f32).collect(), vec![(100.0 + i) as f32; n]]
+        };
+        let base_sim = sim(0.0, 0.1);
+        let weights: Vec<f64> = noise.iter().map(|(_, s)| 1.0 / (s * s)).collect();
+        let mut p = Prepared {
+            powers: Vec::new(),
+            meas,
+            base_sim: base_sim.clone(),
+            base: Vec::new(),
+            regions: Vec::new(),
+            weights,
+            noise,
+            idx: (0..n).collect(),
+            stride: 1,
+            folds: vec![0; n],
+            runs: 1,
+            e0: 0.0,
+            e_noise: (2 * n) as f64,
+            excess: 0.0,
+            excess_ratio: 0.0,
+        };
+        p.e0 = channel_energies(&p, &base_sim).iter().sum();
+        p.excess = p.e0 - p.e_noise;
+        p.excess_ratio = p.e0 / p.e_noise;
+        let o = Options::default();
+        let spec = super::super::library::library(&o.params)
+            .into_iter()
+            .find(|sp| sp.cause == "supply_resistance")
+            .expect("supply_resistance is in the library");
+        let s = Sensitivities {
+            specs: vec![spec],
+            starts: Vec::new(),
+            steps: Vec::new(),
+            sens: Vec::new(),
+            g: Vec::new(),
+            b: Vec::new(),
+            gc: Vec::new(),
+            bc: Vec::new(),
+            groups: vec![("supply_resistance", vec![0])],
+            gf: Vec::new(),
+            bf: Vec::new(),
+        };
+        let judge = |i_after: f64| {
+            let after = sim(0.2, i_after);
+            let energy = channel_energies(&p, &after).iter().sum();
+            let fit = Fit { values: vec![0.01], sim: after, jac: Vec::new(), energy, profile: Vec::new() };
+            let cand = Candidate {
+                effect: "supply_resistance",
+                params: Vec::new(),
+                predicted_reduction: 0.9,
+                confirmed_reduction: Some(((p.e0 - energy) / p.excess).clamp(0.0, 1.0)),
+                energy_after: Some(energy),
+                significant: true,
+                channels: Vec::new(),
+                regions: Vec::new(),
+                moves: vec!["V_DC", "I_DC"],
+                leaves_structure: Some(false),
+                drift: None,
+            };
+            let (cands, fits) = (vec![cand], vec![(0, fit)]);
+            let ev = Evidence {
+                p: &p,
+                s: &s,
+                o: &o,
+                channels: &channels,
+                resolution: vec![0.0; 2],
+                dt: 0.01,
+                cands: &cands,
+                fits: &fits,
+                set: None,
+                ranking: &cands,
+                confounded: &[],
+            };
+            (ev.refusal(&cands[0]), conclude(&ev))
+        };
+        let (why, v) = judge(0.12);
+        assert_eq!(why.as_deref(), Some("it makes I_DC 1.20x worse"));
+        assert_eq!(v.kind, VerdictKind::Unexplained);
+        assert!(v.sentence.contains("(the best, supply_resistance, removes"), "{}", v.sentence);
+        assert!(v.sentence.contains("is not proposed: it makes I_DC 1.20x worse"), "{}", v.sentence);
+        let (why, v) = judge(0.1);
+        assert_eq!(why, None);
+        assert_eq!(v.lead, Some("supply_resistance"), "{}", v.sentence);
     }
 }
