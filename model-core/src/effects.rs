@@ -108,20 +108,29 @@ pub struct Fit {
     pub upper: f64,
     /// The model realises the parameter only in whole time steps (a delay).
     pub whole_steps: bool,
+    /// `(step, to)`: the fit objective has narrow valleys away from the neutral value
+    /// (a free play whose clunks must line up in time: with 3.4° of backlash in the
+    /// bench, 2° and 5° both fit worse than none), so a diagnosis scans the parameter
+    /// on this grid from `lower` up to `to` instead of trusting its linearisation there.
+    pub scan: Option<(f64, f64)>,
 }
 
 impl Fit {
     /// An absolute step and bounds.
     pub const fn abs(step: f64, lower: f64, upper: f64) -> Self {
-        Self { step: Step::Abs(step), lower, upper, whole_steps: false }
+        Self { step: Step::Abs(step), lower, upper, whole_steps: false, scan: None }
     }
     /// A step relative to the neutral value, and bounds.
     pub const fn rel(step: f64, lower: f64, upper: f64) -> Self {
-        Self { step: Step::Rel(step), lower, upper, whole_steps: false }
+        Self { step: Step::Rel(step), lower, upper, whole_steps: false, scan: None }
     }
     /// Realised in whole time steps.
     pub const fn in_whole_steps(self) -> Self {
         Self { whole_steps: true, ..self }
+    }
+    /// Scanned on a grid of `step` up to `to` ([`Fit::scan`]).
+    pub const fn scanned(self, step: f64, to: f64) -> Self {
+        Self { scan: Some((step, to)), ..self }
     }
     /// The step at a neutral value.
     pub fn delta(&self, neutral: f64) -> f64 {
@@ -429,7 +438,7 @@ effects! {
     gear_backlash => gear_backlash: GearBacklash = GearBacklash { backlash_deg: 0.0 },
         proof proof("backlash_deg", 1.0, 4.0, TP07, (1.0, 1.0)), Whole;
     {
-        backlash_deg(.backlash_deg): "deg", Range::closed(0.0, 30.0), fit Some(Fit::abs(0.5, 0.0, 20.0)),
+        backlash_deg(.backlash_deg): "deg", Range::closed(0.0, 30.0), fit Some(Fit::abs(0.5, 0.0, 20.0).scanned(0.25, 10.0)),
             model None, "total free play at the differential case (0 = off)";
     }
     /// [s] pure delay between the throttle and the speed controller (thesis 6.1).

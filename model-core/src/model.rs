@@ -623,7 +623,14 @@ impl<'a, R: Real> Model<'a, R> {
         let [xl, xr] = self.s.x;
         let flange =
             |x: &[R::Wide; NS], i: usize| R::narrow(k.k_f[i] * x[PHI_AF] + k.c_f[i] * (x[W_A] - x[W_F]));
-        let motor_rpm = R::narrow((p.sut_gear_ratio * half).wide() * (xl[W_A] + xr[W_A]) * k.rpm_w);
+        // The motor encoder sees the motor: while the gears are apart (`gear_backlash`) it
+        // turns on its own, following the command, not the coasting differential.
+        let motor_rpm = if self.s.backlash.is_free() {
+            let w_case = k.half_w * (xl[W_A] + xr[W_A]);
+            R::narrow(p.sut_gear_ratio.wide() * self.s.backlash.motor_speed(w_case) * k.rpm_w)
+        } else {
+            R::narrow((p.sut_gear_ratio * half).wide() * (xl[W_A] + xr[W_A]) * k.rpm_w)
+        };
         let speed = |w: R::Wide| R::narrow(w) * rpm;
         let i_xlml = half * i_ld[0];
         // The physical values of the measured channels, in `MEASURED` order.

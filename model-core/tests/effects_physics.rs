@@ -65,6 +65,29 @@ fn backlash_parts_the_motor_from_the_axles_only_at_torque_reversals() {
     assert!((a - b).abs() < 1.0, "{a} vs {b}");
 }
 
+/// While the gears are apart the motor encoder reads the motor, which the speed
+/// controller keeps on its command, not the differential coasting on the other side of
+/// the gap (the physics plant's encoder does the same).
+#[test]
+fn the_motor_encoder_follows_the_free_motor_not_the_coasting_axles() {
+    let mut fx = Effects::NONE;
+    fx.gear_backlash.backlash_deg = 3.0;
+    let with = tp07(fx);
+    let ratio = Params::default().sut_gear_ratio;
+    let (mut to_motor, mut to_axles, mut free) = (0.0, 0.0, 0);
+    for o in &with {
+        let (enc, cmd, axles) =
+            (o.get(Channel::SuTMotorEnc), o.get(Channel::SpeedCmd), ratio * o.get(Channel::SpeedTot));
+        if (enc - axles).abs() > 10.0 {
+            to_motor += (enc - cmd).abs();
+            to_axles += (axles - cmd).abs();
+            free += 1;
+        }
+    }
+    assert!(free > 10, "the gears never parted ({free} samples)");
+    assert!(to_motor < 0.25 * to_axles, "encoder off its command by {to_motor}, the axles by {to_axles}");
+}
+
 #[test]
 fn controller_delay_shifts_the_speed_response() {
     let mut fx = Effects::NONE;

@@ -150,3 +150,18 @@ fn drifting_connector_resistance_is_not_claimed_and_located_in_the_connector() {
     let loc = d.unexplained.expect("a location");
     assert!(["V_DC", "I_DC", "I_DPU 2.7"].contains(&loc.channel), "{loc:?}");
 }
+
+#[test]
+fn backlash_the_linearisation_misses_is_found_by_its_scan() {
+    // On the physics plant, TP12 at part throttle with the loads motoring: 3.4° of free
+    // play moves the flange torques at every reversal, but 2° or 5° in the twin fit worse
+    // than none, so the linearisation at zero play sees nothing; the declared scan finds
+    // the valley and the refit its bottom.
+    let mut truth = BenchEffects::none();
+    truth.library.set("gear_backlash", "backlash_deg", 3.44).unwrap();
+    let run = bench_run_with(&truth, PlantKind::Physics, (Builtin::TP12, 0.61, -0.72), 606);
+    let d = diagnose_run(&run, &Effects::NONE).expect("diagnosis runs");
+    assert_eq!(d.lead, Some("gear_backlash"), "{}", d.verdict);
+    let b = d.proposed.get("gear_backlash", "backlash_deg").unwrap().expect("a backlash");
+    assert!((f64::from(b) - 3.44).abs() < 0.15, "backlash {b}: {}", d.verdict);
+}

@@ -9,6 +9,8 @@
 //!    library parameter (one simulation per parameter, in parallel).
 //! 3. [`selection`](super::selection): score test and greedy orthogonal forward
 //!    regression on the linearised model.
+//!    A parameter whose objective has narrow valleys (a gear's free play) is scanned on
+//!    its declared grid instead ([`scan`](super::scan)).
 //! 4. [`refit`](super::refit): Levenberg–Marquardt refit of the leaders on the real
 //!    simulator; the error it removes, measured, not predicted.
 //! 5. [`uncertainty`](super::uncertainty): a sandwich (HAC) covariance with a positive
@@ -31,6 +33,7 @@ use super::empirical::{correct, Empirical, Inputs as EmpiricalInputs};
 use super::library::ParamSpec;
 use super::preparation::{prepare, Prepared};
 use super::refit::{confirm, refit, Fit};
+use super::scan::scan_valleys;
 use super::selection::{greedy, refit_list, score_effects};
 use super::sensitivities::{sensitivities, Sensitivities};
 use super::uncertainty::{parameter_std, Spread};
@@ -355,6 +358,7 @@ fn stages(
     let p = prepare(twin, meas, o)?;
     let s = sensitivities(twin, &p, o)?;
     let (mut cands, lin) = score_effects(&p, &s, twin.channels());
+    scan_valleys(twin, &p, &s, o, &mut cands);
     let selected = greedy(&p, &s, o);
     let leaders = refit_list(&cands, &selected, o);
     let (fits, set) = rayon::join(

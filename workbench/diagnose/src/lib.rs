@@ -15,6 +15,7 @@ mod constancy;
 mod locate;
 mod preparation;
 mod refit;
+mod scan;
 mod selection;
 mod sensitivities;
 mod uncertainty;

@@ -36,6 +36,12 @@ impl ParamSpec {
         self.cause != self.effect
     }
 
+    /// The declared scan grid `(step, to)` of a parameter whose objective has narrow
+    /// valleys ([`model_core::effects::Fit::scan`]).
+    pub fn scan(&self) -> Option<(f64, f64)> {
+        model_core::effects::effect(self.effect).and_then(|e| e.param(self.param)).and_then(|p| p.fit)?.scan
+    }
+
     /// The smallest step in which the model can realise the parameter, at time step `dt`
     /// (0 where it is continuous).
     pub fn quantum(&self, dt: f64) -> f64 {
