@@ -227,6 +227,40 @@ pub(super) fn energy(p: &Prepared, sim: &[Vec<f32>]) -> f64 {
     e
 }
 
+#[cfg(test)]
+impl Prepared {
+    /// One run, every sample a fit sample, weighted by `noise`, with `base_sim` the current
+    /// model's output and the energies it gives (for tests that need a preparation).
+    pub(crate) fn single_run(
+        meas: Vec<Vec<f64>>,
+        noise: Vec<(&'static str, f64)>,
+        base_sim: Vec<Vec<f32>>,
+    ) -> Self {
+        let n = meas.first().map_or(0, Vec::len);
+        let mut p = Prepared {
+            powers: Vec::new(),
+            weights: noise.iter().map(|(_, s)| 1.0 / (s * s)).collect(),
+            e_noise: (n * meas.len()) as f64,
+            meas,
+            base_sim,
+            base: Vec::new(),
+            regions: Vec::new(),
+            noise,
+            idx: (0..n).collect(),
+            stride: 1,
+            folds: vec![0; n],
+            runs: 1,
+            e0: 0.0,
+            excess: 0.0,
+            excess_ratio: 0.0,
+        };
+        p.e0 = channel_energies(&p, &p.base_sim).iter().sum();
+        p.excess = p.e0 - p.e_noise;
+        p.excess_ratio = p.e0 / p.e_noise;
+        p
+    }
+}
+
 /// Weighted squared error per channel.
 pub(super) fn channel_energies(p: &Prepared, sim: &[Vec<f32>]) -> Vec<f64> {
     p.meas
@@ -348,23 +382,8 @@ pub(super) mod tests {
         let noise = vec![("V_DC", 0.01), ("I_DC", 0.1)];
         let sim = |dv: f32, di: f32| vec![vec![24.0 * (1.0 + dv); n], vec![100.0 * (1.0 + di); n]];
         let (before, after) = (sim(0.01, -0.01), sim(0.0105, 0.0105));
-        let mut p = Prepared {
-            powers: derived_powers(&channels, &meas, &noise),
-            meas,
-            base_sim: before.clone(),
-            base: Vec::new(),
-            regions: Vec::new(),
-            weights: noise.iter().map(|(_, s)| 1.0 / (s * s)).collect(),
-            noise,
-            idx: (0..n).collect(),
-            stride: 1,
-            folds: vec![0; n],
-            runs: 1,
-            e0: 0.0,
-            e_noise: 0.0,
-            excess: 0.0,
-            excess_ratio: 0.0,
-        };
+        let powers = derived_powers(&channels, &meas, &noise);
+        let mut p = Prepared { powers, ..Prepared::single_run(meas, noise, before.clone()) };
         let o = super::Options::default();
         let (name, run, k) = worse_somewhere(&p, &before, &after, &p.idx, &o).expect("the power is worse");
         assert_eq!((name, run), ("P_SuT_inv", 0));

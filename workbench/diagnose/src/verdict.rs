@@ -86,7 +86,7 @@ impl Evidence<'_> {
     /// over the run ([`Candidate::drift`]), it was not refitted, its refit removed less
     /// than `min_reduction_of_noise` of the noise energy, it is a one-channel cause that
     /// only absorbs part of what else is wrong on its channel ([`Self::absorbs`]), or it
-    /// makes some channel worse on some run ([`worse_somewhere`]). `None`: it counts.
+    /// makes some channel worse on some run ([`Self::worse`]). `None`: it counts.
     fn refusal(&self, c: &Candidate) -> Option<String> {
         if let Some(d) = &c.drift {
             return Some(format!("its {} drifts over the run", d.param));
@@ -101,17 +101,18 @@ impl Evidence<'_> {
                 c.moves.first().copied().unwrap_or("its channel")
             ));
         }
-        worse_somewhere(self.p, &self.p.base_sim, &f.sim, &self.p.idx, self.o).map(|(name, run, k)| {
-            let on = if self.p.runs > 1 { format!(" on run {}", run + 1) } else { String::new() };
-            format!("it makes {name} {k:.2}x worse{on}")
-        })
+        self.worse(&f.sim)
     }
 
     /// Whether `sim` makes some channel worse, on the run or on one run of a campaign
-    /// ([`worse_somewhere`]): a proposal that trades one run's error for another's is
-    /// not a physical effect of both, and the user would be told to make a run worse.
-    fn worse_somewhere(&self, sim: &[Vec<f32>]) -> bool {
-        worse_somewhere(self.p, &self.p.base_sim, sim, &self.p.idx, self.o).is_some()
+    /// ([`worse_somewhere`]), said for the user: a proposal that trades one run's error
+    /// for another's is not a physical effect of both, and the user would be told to
+    /// make a run worse.
+    fn worse(&self, sim: &[Vec<f32>]) -> Option<String> {
+        worse_somewhere(self.p, &self.p.base_sim, sim, &self.p.idx, self.o).map(|(name, run, k)| {
+            let on = if self.p.runs > 1 { format!(" on run {}", run + 1) } else { String::new() };
+            format!("it makes {name} {k:.2}x worse{on}")
+        })
     }
 
     /// A sensor cause (it moves one channel alone) that leaves its channel in `sim`
@@ -332,7 +333,7 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     let member = |e: &&'static str| ev.cands.iter().find(|c| c.effect == *e);
     if set.effects.iter().filter_map(member).any(|c| ev.absorbs(c, &set.fit.sim) || c.drift.is_some())
         || set.drift.is_some()
-        || ev.worse_somewhere(&set.fit.sim)
+        || ev.worse(&set.fit.sim).is_some()
     {
         return None;
     }
@@ -603,6 +604,7 @@ mod tests {
         let partial = cand("controller_delay", 0.9, 100.0);
         assert_eq!(names(rank(&[partial, lag]))[0], "sensor_lag.sutmotorenc");
     }
+
     /// A physical candidate that removes most of V_DC's error but makes I_DC 1.2x worse
     /// is not proposed, and the verdict says why; the same fit without the harm counts.
     #[test]
@@ -616,28 +618,7 @@ mod tests {
         let sim = |v: f64, i: f64| -> Vec<Vec<f32>> {
             vec![(0..n).map(|k| (24.0 + v * wave(k)) as f32).collect(), vec![(100.0 + i) as f32; n]]
         };
-        let base_sim = sim(0.0, 0.1);
-        let weights: Vec<f64> = noise.iter().map(|(_, s)| 1.0 / (s * s)).collect();
-        let mut p = Prepared {
-            powers: Vec::new(),
-            meas,
-            base_sim: base_sim.clone(),
-            base: Vec::new(),
-            regions: Vec::new(),
-            weights,
-            noise,
-            idx: (0..n).collect(),
-            stride: 1,
-            folds: vec![0; n],
-            runs: 1,
-            e0: 0.0,
-            e_noise: (2 * n) as f64,
-            excess: 0.0,
-            excess_ratio: 0.0,
-        };
-        p.e0 = channel_energies(&p, &base_sim).iter().sum();
-        p.excess = p.e0 - p.e_noise;
-        p.excess_ratio = p.e0 / p.e_noise;
+        let p = Prepared::single_run(meas, noise, sim(0.0, 0.1));
         let o = Options::default();
         let spec = super::super::library::library(&o.params)
             .into_iter()
