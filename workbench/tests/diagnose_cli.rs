@@ -158,6 +158,26 @@ fn a_local_error_is_never_nothing_missing() {
     assert!(j["verdict"].as_str().unwrap().contains("C_Kistler_L"), "{}", j["verdict"]);
 }
 
+/// A 0.5 A mains line on I_DC in a campaign of TP07 and TP11 (130 s): the fit keeps
+/// every 11th sample (91 Hz), where a 50 Hz line cannot be seen, so the line is tested
+/// on every sample of each run. Diagnose must locate it on I_DC, not call the run noise
+/// or point at another channel.
+#[test]
+fn a_mains_line_in_a_long_campaign_is_located() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path();
+    std::fs::write(p.join("mains.toml"), "[mains_pickup]\ni_dc = 0.5\n").unwrap();
+    for (profile, seed, out) in [("TP07", "61", "a.csv"), ("TP11", "62", "b.csv")] {
+        let a =
+            ["bench", "--profile", profile, "--effects", "mains.toml", "--seed", seed, "-q", "--out", out];
+        ok(&simrod(p, &a));
+    }
+    let j: Value = serde_json::from_str(&ok(&simrod(p, &["diagnose", "a.csv", "b.csv", "--json"]))).unwrap();
+    assert_eq!(j["kind"], "unexplained", "{}", j["verdict"]);
+    assert_eq!(j["unexplained"]["channel"], "I_DC", "{}", j["verdict"]);
+    assert!(j["verdict"].as_str().unwrap().contains("50.00 Hz line"), "{}", j["verdict"]);
+}
+
 /// A campaign is fitted jointly: differential friction hidden in TP14 reversed is
 /// confounded there with a current-sensor gain; the run the tool names to separate them
 /// (TP07 at 0.79 with motoring loads), added as a second file, resolves that pair and

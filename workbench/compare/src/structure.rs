@@ -102,11 +102,32 @@ impl ChannelWindows {
 }
 
 /// The windows of residual `r` sampled every `dt` seconds (non-finite samples, such as
-/// gaps, are left out of their block; a block less than half finite is left out).
-/// `resolution` [unit]: the largest error the sensor makes by design (a tachometer:
-/// one count per window; 0 for none): a residual within it is never material, however
-/// regular.
+/// gaps, are left out of their block; a block less than half finite is left out), and
+/// its mains lines ([`lines`]). `resolution` [unit]: the largest error the sensor makes
+/// by design (a tachometer: one count per window; 0 for none): a residual within it is
+/// never material, however regular.
 pub fn windows(r: &[f64], dt: f64, resolution: f64) -> ChannelWindows {
+    let mut w = time_windows(r, dt, resolution);
+    if w.block_sigma > 0.0 {
+        w.windows.extend(lines(r, dt, resolution));
+    }
+    w
+}
+
+/// The mains-line tests ([`MAINS_HZ`]) of residual `r` sampled every `dt` seconds, as
+/// whole-run windows. Apart from [`time_windows`] because a line needs every sample: a
+/// caller that thins a long series (a diagnosis's fit samples) tests the lines on the
+/// full series and the windows on the thinned one.
+pub fn lines(r: &[f64], dt: f64, resolution: f64) -> Vec<Window> {
+    let noise = noise_sigma(r, ((NOISE_HALF_S / dt).round() as usize).max(5));
+    if noise.is_nan() || noise <= 0.0 {
+        return Vec::new();
+    }
+    MAINS_HZ.iter().filter_map(|f| mains_line(r, dt, *f, noise.max(resolution))).collect()
+}
+
+/// The time windows of [`windows`] without the mains lines.
+pub fn time_windows(r: &[f64], dt: f64, resolution: f64) -> ChannelWindows {
     let per_block = ((BLOCK_S / dt).round() as usize).max(1);
     let blocks: Vec<Option<f64>> =
         r.chunks(per_block).filter(|c| c.len() == per_block).map(block_mean).collect();
@@ -130,7 +151,6 @@ pub fn windows(r: &[f64], dt: f64, resolution: f64) -> ChannelWindows {
         windows.extend(window(&blocks[j..j + dof], &r[from..to], from, null, local.max(resolution)));
         j += step;
     }
-    windows.extend(MAINS_HZ.iter().filter_map(|f| mains_line(r, dt, *f, noise.max(resolution))));
     ChannelWindows { windows, block_sigma, noise_sigma: noise }
 }
 

@@ -212,6 +212,7 @@ mod tests {
             stride: 1,
             folds: (0..n).map(|k| k * 5 / n).collect(),
             runs,
+            lines: Vec::new(),
             e0: 0.0,
             e_noise: 0.0,
             excess: 0.0,

@@ -4,7 +4,7 @@
 
 use model_core::{Channel, Effects};
 
-use simrod_compare::structure::noise_sigma;
+use simrod_compare::structure::{self, noise_sigma, Window};
 use simrod_io::progress::Progress;
 use simrod_twin::{Power, POWERS};
 
@@ -39,6 +39,11 @@ pub(super) struct Prepared {
     pub folds: Vec<usize>,
     /// Recorded runs (a campaign: more than one; then `folds` are the runs).
     pub runs: usize,
+    /// Per channel, the mains-line tests of the current model's residual, run by run
+    /// ([`structure::lines`]), as windows over the fit samples. Tested on every sample
+    /// (thinned, a 50 Hz line aliases or is lost) and once: the twin makes no mains
+    /// content, so no candidate's fit changes them.
+    pub lines: Vec<Vec<Window>>,
     /// Weighted squared error of the current model.
     pub e0: f64,
     /// What noise alone would give (one per fit sample and channel).
@@ -78,12 +83,13 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         .map(|((m, s), c)| (c.name(), channel_sigma(m, s, h)))
         .collect();
     let weights = noise.iter().map(|(_, s)| 1.0 / (s * s)).collect();
+    let segments = twin.segments();
+    let lines = mains_lines(meas, &base_sim, &twin.resolution(), &segments, twin.dt_s(), stride);
     let base_sim: Vec<Vec<f32>> = base_sim.into_iter().map(|c| every(c, stride)).collect();
     let meas: Vec<Vec<f64>> = meas.iter().map(|m| every(m.clone(), stride)).collect();
     let powers = derived_powers(channels, &meas, &noise);
     let base: Vec<Vec<f64>> = base_sim.iter().map(|c| c.iter().map(|v| f64::from(*v)).collect()).collect();
     let idx: Vec<usize> = (0..base.first().map_or(0, Vec::len)).collect();
-    let segments = twin.segments();
     let folds = folds(&segments, stride, idx.len());
     let mut p = Prepared {
         meas,
@@ -97,6 +103,7 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         stride,
         folds,
         runs: segments.len(),
+        lines,
         e0: 0.0,
         e_noise: 0.0,
         excess: 0.0,
@@ -109,6 +116,40 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
     p.excess = (p.e0 - p.e_noise).max(1e-3 * p.e_noise).max(1e-300);
     p.excess_ratio = p.e0 / p.e_noise;
     Ok(p)
+}
+
+/// Per channel, the mains-line tests of residual `s - m` on every sample (`dt` [s]
+/// apart), run by run (`segments` samples each: a line's phase does not carry over
+/// from one run to the next), with each window's start and length counted in fit
+/// samples (every `stride`-th).
+fn mains_lines(
+    meas: &[Vec<f64>],
+    sim: &[Vec<f32>],
+    resolution: &[f64],
+    segments: &[usize],
+    dt: f64,
+    stride: usize,
+) -> Vec<Vec<Window>> {
+    meas.iter()
+        .zip(sim)
+        .enumerate()
+        .map(|(c, (m, s))| {
+            let r: Vec<f64> = m.iter().zip(s).map(|(a, b)| f64::from(*b) - a).collect();
+            let res = resolution.get(c).copied().unwrap_or(0.0);
+            let mut from = 0;
+            let mut out = Vec::new();
+            for len in segments {
+                let to = (from + len).min(r.len());
+                out.extend(structure::lines(&r[from..to], dt, res).into_iter().map(|w| Window {
+                    start: from.div_ceil(stride),
+                    len: (to - from) / stride,
+                    ..w
+                }));
+                from = to;
+            }
+            out
+        })
+        .collect()
 }
 
 /// Contiguous stretches of a single run that held-out validation leaves out in turn.
@@ -250,6 +291,7 @@ impl Prepared {
             stride: 1,
             folds: vec![0; n],
             runs: 1,
+            lines: Vec::new(),
             e0: 0.0,
             excess: 0.0,
             excess_ratio: 0.0,

@@ -333,6 +333,7 @@ mod tests {
             stride: 1,
             folds: vec![0; n],
             runs: 1,
+            lines: Vec::new(),
             e0: 0.0,
             e_noise: n as f64,
             excess: 1.0,

@@ -215,7 +215,14 @@ pub(super) fn structure_in(
         .zip(resolution)
         .map(|((m, s), res)| {
             let r: Vec<f64> = m.iter().zip(s).map(|(a, b)| f64::from(*b) - a).collect();
-            structure::windows(&r, dt, *res)
+            structure::time_windows(&r, dt, *res)
+        })
+        .enumerate()
+        .map(|(c, mut w)| {
+            if w.block_sigma > 0.0 {
+                w.windows.extend(p.lines.get(c).into_iter().flatten().copied());
+            }
+            w
         })
         .collect();
     let tested: usize = per_channel.iter().map(|c| c.windows.len()).sum();
