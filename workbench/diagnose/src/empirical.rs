@@ -441,6 +441,9 @@ struct Basis {
     folds: Vec<usize>,
     /// The model's outputs there, and the residual `[channel][row]`.
     sim0: Vec<Vec<f32>>,
+    /// The outputs with every map an earlier round corrected back at its built-in values
+    /// ([`before_corrections`]); `None` when no map was corrected.
+    sim_before: Option<Vec<Vec<f32>>>,
     r: Vec<Vec<f64>>,
     /// Weighted error energy, and its excess over noise.
     energy: f64,
@@ -482,7 +485,9 @@ pub(super) fn correct(inp: &Inputs) -> Option<Empirical> {
         return None;
     }
     let folds = blocks(&rows, p.stride, twin.dt_s());
-    let b = Basis { rows, folds, sim0, r, energy, excess };
+    let sim_before =
+        before_corrections(&base).and_then(|d| twin.run_data(&Arc::new(d), &inp.fx, p.stride).ok());
+    let b = Basis { rows, folds, sim0, sim_before, r, energy, excess };
     let maps = candidates(&base, &twin.set_points());
     let chosen = screen(inp, &base, &maps, &b);
     if chosen.is_empty() {
@@ -752,6 +757,16 @@ fn confirm(
         worse = worse_somewhere(p, sim0, &after, rows, inp.o)
             .map(|(name, f, k)| format!("it would make {name} worse on run {} ({k:.2}x its RMSE)", f + 1));
     }
+    // Against the maps before any empirical correction too: a loop that adds a table
+    // each round must not walk a run's error up by steps each within the guard.
+    if let (None, Some(before)) = (&worse, &b.sim_before) {
+        worse = worse_somewhere(p, before, &after, rows, inp.o).map(|(name, f, k)| {
+            format!(
+                "with the earlier corrections it would make {name} worse on run {} ({k:.2}x its RMSE with the built-in maps)",
+                f + 1
+            )
+        });
+    }
     // Capped at all of it: below the estimated noise level is noise, not more excess.
     let confirmed = ((b.energy - e_after) / excess).min(1.0);
     let heldout = held / excess;
@@ -814,13 +829,38 @@ fn summarize(m: &MapNodes, base: &ModelData, now: &ModelData) -> MapCorrection {
     }
 }
 
+/// How a corrected map's comments begin: what [`before_corrections`] recognises.
+const MARK: &str = "# EMPIRICAL CORRECTION (simrod diagnose)";
+
+/// `d` with every map an earlier diagnosis corrected ([`MARK`]) back at the built-in
+/// data's values (the thesis maps every correction loop starts from); `None` when no map
+/// is marked or the built-in data cannot be read. A marked map whose grid differs from
+/// the built-in one is left as it is.
+fn before_corrections(d: &ModelData) -> Option<ModelData> {
+    let builtin = ModelData::builtin().ok()?;
+    let mut out = d.clone();
+    let mut any = false;
+    for (file, _) in MAPS {
+        let Some((orig, _, _)) = values(&builtin, file) else { continue };
+        let orig = orig.to_vec();
+        if let Some((v, comments)) = values_mut(&mut out, file) {
+            if comments.iter().any(|c| c.starts_with(MARK)) && v.len() == orig.len() {
+                *v = orig;
+                comments.retain(|c| !c.starts_with(MARK));
+                any = true;
+            }
+        }
+    }
+    any.then_some(out)
+}
+
 /// The corrected data with every changed map's comments saying what it is.
 fn label(data: Arc<ModelData>, maps: &[&MapNodes], heldout: f64, samples: usize) -> Arc<ModelData> {
     let mut d = (*data).clone();
     for m in maps {
         if let Some((_, comments)) = values_mut(&mut d, m.file) {
             comments.push(format!(
-                "# EMPIRICAL CORRECTION (simrod diagnose): a table fitted to measured runs, not a physical effect. \
+                "{MARK}: a table fitted to measured runs, not a physical effect. \
                  {} visited nodes changed, smoothed, chosen on held-out data ({:.0} % of the excess error removed there; \
                  {samples} fit samples); the other nodes keep their value.",
                 m.nodes.len(),
@@ -834,6 +874,27 @@ fn label(data: Arc<ModelData>, maps: &[&MapNodes], heldout: f64, samples: usize)
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A map a diagnosis corrected (and labelled) goes back to the built-in values; a
+    /// map changed by the user without the label is theirs and stays; data with no
+    /// labelled map has nothing to go back to.
+    #[test]
+    fn only_the_labelled_corrections_are_undone() {
+        let builtin = ModelData::builtin().expect("built-in data");
+        assert!(before_corrections(&builtin).is_none());
+        let (speed, torque) = ("speed_map_fwd.csv", "load_torque_R.csv");
+        let node = |d: &ModelData, file: &str| values(d, file).unwrap().0[1];
+        let mut user = builtin.clone();
+        values_mut(&mut user, speed).unwrap().0[1] += 25.0;
+        assert!(before_corrections(&user).is_none(), "an unlabelled change is the user's");
+        let m = MapNodes { file: torque, axis: Axis::Load(1), nodes: vec![1], step: 1.0, limit: 10.0 };
+        let fixed = label(Arc::new(corrected(&user, &[&m], &[3.0])), &[&m], 0.4, 100);
+        assert_eq!(node(&fixed, torque), node(&builtin, torque) + 3.0);
+        let back = before_corrections(&fixed).expect("one labelled map");
+        assert_eq!(node(&back, torque), node(&builtin, torque));
+        assert_eq!(node(&back, speed), node(&user, speed), "the user's change stays");
+        assert!(before_corrections(&back).is_none(), "the label goes with the correction");
+    }
 
     #[test]
     fn near_marks_the_cell_around_a_value() {
