@@ -103,9 +103,10 @@ pub struct DiagnoseArgs {
     pub write_effects: Option<PathBuf>,
 
     /// When no library effect explains the error and an empirical correction of the
-    /// maps is offered: write the model data with the corrected maps (labelled
-    /// EMPIRICAL in their comments) to this directory, for `--data-dir` (or to compile
-    /// into the firmware as model-core/data). Never an input's directory.
+    /// maps (or of the throttle chain's volts per percent) is offered: write the model
+    /// data with the corrected tables (labelled EMPIRICAL in their comments) to this
+    /// directory, for `--data-dir` (or to compile into the firmware as model-core/data).
+    /// Never an input's directory.
     #[arg(long, value_name = "DIR")]
     pub write_data: Option<PathBuf>,
 

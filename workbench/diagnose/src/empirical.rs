@@ -20,11 +20,16 @@
 //!
 //! Nodes the run never visits keep their value, and every corrected file says in its
 //! comments that it is empirical and what it was fitted on.
+//!
+//! One scalar of `parameters.toml` is corrected the same way, as a table of one node:
+//! the throttle chain's volts per percent, which the recorded Throttle and the
+//! controller's command share (a PLC output 1 % off shows on every run, and no library
+//! effect is a data value).
 
 use std::sync::Arc;
 
 use model_core::{Channel, Effects, SetPoints};
-use simrod_io::datadir::ModelData;
+use simrod_io::datadir::{ModelData, ParamLine};
 
 use super::engine::{ChannelChange, Options, Twin};
 use super::linalg::solve_spd;
@@ -92,7 +97,7 @@ impl Empirical {
             .maps
             .iter()
             .map(|m| {
-                format!("{} ({} of {} nodes, RMS change {:.3})", m.file, m.nodes.0, m.nodes.1, m.rms_change)
+                format!("{} ({} of {} nodes, RMS change {:.4})", m.file, m.nodes.0, m.nodes.1, m.rms_change)
             })
             .collect();
         format!(
@@ -113,10 +118,12 @@ enum Axis {
     Load(usize),
     /// A 2-D map over (throttle set point, mean load set point).
     LoadMean,
+    /// One scalar of `parameters.toml` ([`PARAM_PREFIX`]): identified data like the maps.
+    Scalar,
 }
 
 /// The maps a correction may change.
-const MAPS: [(&str, Axis); 12] = [
+const MAPS: [(&str, Axis); 13] = [
     ("throttle_input_map.csv", Axis::One { signed: false }),
     ("speed_map_fwd.csv", Axis::One { signed: false }),
     ("speed_map_rev.csv", Axis::One { signed: false }),
@@ -129,20 +136,84 @@ const MAPS: [(&str, Axis); 12] = [
     ("load_power_L.csv", Axis::Load(0)),
     ("load_power_R.csv", Axis::Load(1)),
     ("sut_inverter_power.csv", Axis::LoadMean),
+    // The PLC's volts per percent of the throttle signal: the recorded Throttle and the
+    // controller's command both follow it, and a bench whose chain is 1 % off shows it on
+    // every run (no library effect is this data value).
+    ("parameters.toml:throttle_volts_per_pct", Axis::Scalar),
 ];
+
+/// How [`MAPS`] names a scalar of `parameters.toml`: this prefix and its key.
+const PARAM_PREFIX: &str = "parameters.toml:";
+
+/// What a table's comments are: a map's comment lines, or a parameter's one comment.
+enum Notes<'a> {
+    Lines(&'a mut Vec<String>),
+    Line(&'a mut String),
+}
+
+impl Notes<'_> {
+    /// Whether an earlier diagnosis corrected the table ([`MARK`]).
+    fn marked(&self) -> bool {
+        match self {
+            Notes::Lines(l) => l.iter().any(|c| c.starts_with(MARK)),
+            Notes::Line(c) => c.contains(MARK),
+        }
+    }
+
+    /// Label the table as corrected: a map gets a comment line, a parameter's comment
+    /// ends with the label (its unit and origin stay first), replacing an earlier one.
+    fn mark(&mut self, text: String) {
+        if let Notes::Lines(l) = self {
+            l.push(text);
+            return;
+        }
+        self.unmark();
+        if let Notes::Line(c) = self {
+            c.push(' ');
+            c.push_str(&text);
+        }
+    }
+
+    /// Take every label off.
+    fn unmark(&mut self) {
+        match self {
+            Notes::Lines(l) => l.retain(|c| !c.starts_with(MARK)),
+            Notes::Line(c) => {
+                if let Some(at) = c.find(MARK) {
+                    c.truncate(at);
+                    c.truncate(c.trim_end().len());
+                }
+            }
+        }
+    }
+}
 
 /// The values of map `file` in `d` (1-D: `y`; 2-D: `z`, row-major) and its grid sizes.
 fn values<'a>(d: &'a ModelData, file: &str) -> Option<(&'a [f32], usize, usize)> {
+    if let Some(key) = file.strip_prefix(PARAM_PREFIX) {
+        return d.params.iter().find_map(|l| match l {
+            ParamLine::Entry { key: k, value, .. } if k == key => Some((std::slice::from_ref(value), 1, 1)),
+            _ => None,
+        });
+    }
     if let Some((_, m)) = d.maps_1d().into_iter().find(|(f, _)| *f == file) {
         return Some((&m.y, m.x.len(), 1));
     }
     d.maps_2d().into_iter().find(|(f, _)| *f == file).map(|(_, m)| (m.z.as_slice(), m.x.len(), m.y.len()))
 }
 
-/// Mutable values and comments of map `file` in `d`.
-fn values_mut<'a>(d: &'a mut ModelData, file: &str) -> Option<(&'a mut Vec<f32>, &'a mut Vec<String>)> {
-    let m1 = |m: &'a mut simrod_io::datadir::Map1| (&mut m.y, &mut m.comments);
-    let m2 = |m: &'a mut simrod_io::datadir::Map2| (&mut m.z, &mut m.comments);
+/// Mutable values and comments of table `file` in `d`.
+fn values_mut<'a>(d: &'a mut ModelData, file: &str) -> Option<(&'a mut [f32], Notes<'a>)> {
+    if let Some(key) = file.strip_prefix(PARAM_PREFIX) {
+        return d.params.iter_mut().find_map(|l| match l {
+            ParamLine::Entry { key: k, value, comment } if k == key => {
+                Some((std::slice::from_mut(value), Notes::Line(comment)))
+            }
+            _ => None,
+        });
+    }
+    let m1 = |m: &'a mut simrod_io::datadir::Map1| (m.y.as_mut_slice(), Notes::Lines(&mut m.comments));
+    let m2 = |m: &'a mut simrod_io::datadir::Map2| (m.z.as_mut_slice(), Notes::Lines(&mut m.comments));
     let [fl, fr] = &mut d.friction;
     let [tl, tr] = &mut d.load_torque;
     let [cl, cr] = &mut d.load_current;
@@ -174,6 +245,9 @@ fn grid<'a>(d: &'a ModelData, file: &str) -> Option<(&'a [f32], &'a [f32])> {
 
 /// What map `file` gives: the value column of a 1-D map's header, a 2-D map's name.
 fn quantity(d: &ModelData, file: &str) -> String {
+    if let Some(key) = file.strip_prefix(PARAM_PREFIX) {
+        return key.to_owned();
+    }
     match d.maps_1d().into_iter().find(|(f, _)| *f == file) {
         Some((_, m)) => m.header.split(',').nth(1).unwrap_or("").trim().to_owned(),
         None => file.trim_end_matches(".csv").replace('_', " "),
@@ -201,8 +275,12 @@ fn near(g: &[f32], v: f32, out: &mut [bool]) {
 
 /// One map's candidate nodes: flat indices into its values.
 fn visited(d: &ModelData, file: &str, axis: Axis, sps: &[SetPoints]) -> Vec<usize> {
+    if axis == Axis::Scalar {
+        return if sps.iter().any(|sp| sp.throttle_pct != 0.0) { vec![0] } else { Vec::new() };
+    }
     let Some((x, y)) = grid(d, file) else { return Vec::new() };
     match axis {
+        Axis::Scalar => Vec::new(),
         Axis::One { .. } => (0..x.len()).collect(),
         Axis::Load(_) | Axis::LoadMean => {
             let nx = x.len();
@@ -585,7 +663,9 @@ fn screen(inp: &Inputs, base: &ModelData, maps: &[MapNodes], b: &Basis) -> Vec<u
         if cols.len() != 2 {
             continue;
         }
-        let refs: Vec<&Vec<Vec<f64>>> = cols.iter().collect();
+        // One node has no tilt (its "tilt" is the shift reversed).
+        let shapes = if maps[m].nodes.len() == 1 { 1 } else { 2 };
+        let refs: Vec<&Vec<Vec<f64>>> = cols.iter().take(shapes).collect();
         let nm = b.normal(&refs, &inp.p.weights);
         let Some(th) = solve_spd(&nm.g, &nm.b, 1e-9) else { continue };
         let removed: f64 = th.iter().zip(&nm.b).map(|(x, y)| x * y).sum();
@@ -843,10 +923,10 @@ fn before_corrections(d: &ModelData) -> Option<ModelData> {
     for (file, _) in MAPS {
         let Some((orig, _, _)) = values(&builtin, file) else { continue };
         let orig = orig.to_vec();
-        if let Some((v, comments)) = values_mut(&mut out, file) {
-            if comments.iter().any(|c| c.starts_with(MARK)) && v.len() == orig.len() {
-                *v = orig;
-                comments.retain(|c| !c.starts_with(MARK));
+        if let Some((v, mut notes)) = values_mut(&mut out, file) {
+            if notes.marked() && v.len() == orig.len() {
+                v.copy_from_slice(&orig);
+                notes.unmark();
                 any = true;
             }
         }
@@ -858,12 +938,15 @@ fn before_corrections(d: &ModelData) -> Option<ModelData> {
 fn label(data: Arc<ModelData>, maps: &[&MapNodes], heldout: f64, samples: usize) -> Arc<ModelData> {
     let mut d = (*data).clone();
     for m in maps {
-        if let Some((_, comments)) = values_mut(&mut d, m.file) {
-            comments.push(format!(
+        let what = match m.axis {
+            Axis::Scalar => "the value fitted, chosen on held-out data".to_owned(),
+            _ => format!("{} visited nodes changed, smoothed, chosen on held-out data", m.nodes.len()),
+        };
+        if let Some((_, mut notes)) = values_mut(&mut d, m.file) {
+            notes.mark(format!(
                 "{MARK}: a table fitted to measured runs, not a physical effect. \
-                 {} visited nodes changed, smoothed, chosen on held-out data ({:.0} % of the excess error removed there; \
-                 {samples} fit samples); the other nodes keep their value.",
-                m.nodes.len(),
+                 {what} ({:.0} % of the excess error removed there; {samples} fit samples); \
+                 the other nodes keep their value.",
                 100.0 * heldout
             ));
         }
@@ -894,6 +977,43 @@ mod tests {
         assert_eq!(node(&back, torque), node(&builtin, torque));
         assert_eq!(node(&back, speed), node(&user, speed), "the user's change stays");
         assert!(before_corrections(&back).is_none(), "the label goes with the correction");
+    }
+
+    /// The throttle chain's volts per percent is corrected like a one-node map: its
+    /// label follows its unit and origin in `parameters.toml`, a second correction
+    /// replaces the first label, and undoing it restores the value and the comment.
+    #[test]
+    fn a_parameter_is_a_one_node_table() {
+        let builtin = ModelData::builtin().expect("built-in data");
+        let file = "parameters.toml:throttle_volts_per_pct";
+        let k0 = values(&builtin, file).expect("in parameters.toml").0[0];
+        let comment = |d: &ModelData| match d
+            .params
+            .iter()
+            .find(|l| matches!(l, ParamLine::Entry { key, .. } if key == "throttle_volts_per_pct"))
+        {
+            Some(ParamLine::Entry { comment, .. }) => comment.clone(),
+            _ => String::new(),
+        };
+        let m = MapNodes { file, axis: Axis::Scalar, nodes: vec![0], step: 0.001, limit: 10.0 };
+        let once = label(Arc::new(corrected(&builtin, &[&m], &[0.5])), &[&m], 0.8, 100);
+        let twice = label(Arc::new(corrected(&once, &[&m], &[0.25])), &[&m], 0.5, 100);
+        assert_eq!(
+            values(&twice, file).unwrap().0[0],
+            ((f64::from(k0) + 0.0005) as f32 as f64 + 0.00025) as f32
+        );
+        let c = comment(&twice);
+        assert!(c.starts_with(&comment(&builtin)), "unit and origin first: {c}");
+        assert_eq!(c.matches(MARK).count(), 1, "one label: {c}");
+        let back = before_corrections(&twice).expect("a labelled parameter");
+        assert_eq!(values(&back, file).unwrap().0[0], k0);
+        assert_eq!(comment(&back), comment(&builtin));
+        let sp = |throttle_pct: f32| SetPoints { throttle_pct, load_pct: [0.0, 0.0] };
+        assert_eq!(visited(&builtin, file, Axis::Scalar, &[sp(0.0), sp(40.0)]), [0]);
+        assert!(
+            visited(&builtin, file, Axis::Scalar, &[sp(0.0)]).is_empty(),
+            "a run at rest does not see it"
+        );
     }
 
     #[test]
