@@ -938,15 +938,17 @@ fn before_corrections(d: &ModelData) -> Option<ModelData> {
 fn label(data: Arc<ModelData>, maps: &[&MapNodes], heldout: f64, samples: usize) -> Arc<ModelData> {
     let mut d = (*data).clone();
     for m in maps {
-        let what = match m.axis {
-            Axis::Scalar => "the value fitted, chosen on held-out data".to_owned(),
-            _ => format!("{} visited nodes changed, smoothed, chosen on held-out data", m.nodes.len()),
+        let (what, rest) = match m.axis {
+            Axis::Scalar => ("The value fitted".to_owned(), ""),
+            _ => (
+                format!("{} visited nodes changed, smoothed", m.nodes.len()),
+                " The other nodes keep their value.",
+            ),
         };
         if let Some((_, mut notes)) = values_mut(&mut d, m.file) {
             notes.mark(format!(
-                "{MARK}: a table fitted to measured runs, not a physical effect. \
-                 {what} ({:.0} % of the excess error removed there; {samples} fit samples); \
-                 the other nodes keep their value.",
+                "{MARK}: a table fitted to measured runs, not a physical effect. {what}, chosen on \
+                 held-out data ({:.0} % of the excess error removed there; {samples} fit samples).{rest}",
                 100.0 * heldout
             ));
         }
