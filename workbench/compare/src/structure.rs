@@ -95,6 +95,14 @@ pub struct ChannelWindows {
 }
 
 impl ChannelWindows {
+    /// Add a channel's mains-line tests ([`lines`]) to its windows; a channel with no
+    /// noise estimate tests nothing, lines included.
+    pub fn add_lines(&mut self, lines: impl IntoIterator<Item = Window>) {
+        if self.block_sigma > 0.0 {
+            self.windows.extend(lines);
+        }
+    }
+
     /// The windows structured at p-value threshold `th` ([`threshold`]) and material.
     pub fn flagged(&self, th: f64) -> impl Iterator<Item = &Window> {
         self.windows.iter().filter(move |w| w.p < th && w.material)
@@ -108,9 +116,8 @@ impl ChannelWindows {
 /// never material, however regular.
 pub fn windows(r: &[f64], dt: f64, resolution: f64) -> ChannelWindows {
     let mut w = time_windows(r, dt, resolution);
-    if w.block_sigma > 0.0 {
-        w.windows.extend(lines(r, dt, resolution));
-    }
+    // Lazy: not computed when the channel tests nothing.
+    w.add_lines(mains_lines(r, dt, w.noise_sigma.max(resolution)));
     w
 }
 
@@ -123,7 +130,13 @@ pub fn lines(r: &[f64], dt: f64, resolution: f64) -> Vec<Window> {
     if noise.is_nan() || noise <= 0.0 {
         return Vec::new();
     }
-    MAINS_HZ.iter().filter_map(|f| mains_line(r, dt, *f, noise.max(resolution))).collect()
+    mains_lines(r, dt, noise.max(resolution)).collect()
+}
+
+/// The tests of [`lines`] against the per-sample noise σ `noise` (line included), run
+/// as they are taken.
+fn mains_lines(r: &[f64], dt: f64, noise: f64) -> impl Iterator<Item = Window> + '_ {
+    MAINS_HZ.iter().filter_map(move |f| mains_line(r, dt, *f, noise))
 }
 
 /// The time windows of [`windows`] without the mains lines.

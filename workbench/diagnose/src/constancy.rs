@@ -202,22 +202,14 @@ mod tests {
     fn prepared(meas: Vec<Vec<f64>>, runs: usize) -> Prepared {
         let n = meas[0].len();
         Prepared {
-            base_sim: Vec::new(),
-            base: Vec::new(),
-            regions: Vec::new(),
             weights: vec![1e4; meas.len()],
             noise: vec![("C_Kistler_L", 0.01); meas.len()],
-            powers: Vec::new(),
             idx: (0..n).collect(),
             stride: 1,
             folds: (0..n).map(|k| k * 5 / n).collect(),
             runs,
-            lines: Vec::new(),
-            e0: 0.0,
-            e_noise: 0.0,
-            excess: 0.0,
-            excess_ratio: 0.0,
             meas,
+            ..Prepared::default()
         }
     }
 }

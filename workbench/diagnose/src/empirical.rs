@@ -917,18 +917,23 @@ const MARK: &str = "# EMPIRICAL CORRECTION (simrod diagnose)";
 /// is marked or the built-in data cannot be read. A marked map whose grid differs from
 /// the built-in one is left as it is.
 fn before_corrections(d: &ModelData) -> Option<ModelData> {
-    let builtin = ModelData::builtin().ok()?;
     let mut out = d.clone();
+    // Parsed only when some table is labelled.
+    let mut builtin: Option<ModelData> = None;
     let mut any = false;
     for (file, _) in MAPS {
-        let Some((orig, _, _)) = values(&builtin, file) else { continue };
-        let orig = orig.to_vec();
-        if let Some((v, mut notes)) = values_mut(&mut out, file) {
-            if notes.marked() && v.len() == orig.len() {
-                v.copy_from_slice(&orig);
-                notes.unmark();
-                any = true;
-            }
+        let Some((v, mut notes)) = values_mut(&mut out, file) else { continue };
+        if !notes.marked() {
+            continue;
+        }
+        let b = match &builtin {
+            Some(b) => b,
+            None => builtin.insert(ModelData::builtin().ok()?),
+        };
+        if let Some((orig, _, _)) = values(b, file).filter(|(o, _, _)| o.len() == v.len()) {
+            v.copy_from_slice(orig);
+            notes.unmark();
+            any = true;
         }
     }
     any.then_some(out)

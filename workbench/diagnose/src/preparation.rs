@@ -12,7 +12,9 @@ use super::engine::{every, Options, RegionChange, Twin};
 
 /// The measurement against the current model, reduced to what the fits need: every
 /// series holds only the fit samples (every `stride`-th sample of the run), so a long
-/// run costs the fits no more memory than a short one.
+/// run costs the fits no more memory than a short one. (`Default`: empty, for tests
+/// that set only what they read.)
+#[derive(Default)]
 pub(super) struct Prepared {
     /// Measured `[channel][fit sample]`.
     pub meas: Vec<Vec<f64>>,
@@ -279,22 +281,16 @@ impl Prepared {
     ) -> Self {
         let n = meas.first().map_or(0, Vec::len);
         let mut p = Prepared {
-            powers: Vec::new(),
             weights: noise.iter().map(|(_, s)| 1.0 / (s * s)).collect(),
             e_noise: (n * meas.len()) as f64,
             meas,
             base_sim,
-            base: Vec::new(),
-            regions: Vec::new(),
             noise,
             idx: (0..n).collect(),
             stride: 1,
             folds: vec![0; n],
             runs: 1,
-            lines: Vec::new(),
-            e0: 0.0,
-            excess: 0.0,
-            excess_ratio: 0.0,
+            ..Prepared::default()
         };
         p.e0 = channel_energies(&p, &p.base_sim).iter().sum();
         p.excess = p.e0 - p.e_noise;

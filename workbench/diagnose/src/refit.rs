@@ -325,19 +325,15 @@ mod tests {
             meas,
             base: vec![vec![0.0; n]],
             base_sim,
-            regions: Vec::new(),
             weights: vec![1.0],
             noise: vec![("Throttle", 1.0)],
-            powers: Vec::new(),
             idx: (0..n).collect(),
             stride: 1,
             folds: vec![0; n],
             runs: 1,
-            lines: Vec::new(),
-            e0: 0.0,
             e_noise: n as f64,
             excess: 1.0,
-            excess_ratio: 0.0,
+            ..Prepared::default()
         };
         (twin, p)
     }

@@ -219,9 +219,7 @@ pub(super) fn structure_in(
         })
         .enumerate()
         .map(|(c, mut w)| {
-            if w.block_sigma > 0.0 {
-                w.windows.extend(p.lines.get(c).into_iter().flatten().copied());
-            }
+            w.add_lines(p.lines.get(c).into_iter().flatten().copied());
             w
         })
         .collect();
