@@ -110,9 +110,45 @@ struct Outcome {
     why: Vec<String>,
 }
 
-fn arg(name: &str) -> Option<String> {
-    let a: Vec<String> = std::env::args().collect();
-    a.iter().position(|x| x == name).and_then(|i| a.get(i + 1).cloned())
+/// The sweep's flags, parsed once; an unknown flag or a bad value is an error, not a
+/// default (a typo must not start a 90-minute sweep on the wrong seeds).
+struct Options {
+    cases: u64,
+    first: u64,
+    jobs: usize,
+    check: bool,
+    replay: Option<PathBuf>,
+    keep: Option<PathBuf>,
+}
+
+const USAGE: &str = "usage: blind_loop [--cases N] [--first SEED] [--jobs J] [--check] [--keep DIR]\n       \
+                     blind_loop --replay DIR [--cases N] [--first SEED]";
+
+impl Options {
+    fn parse(args: impl Iterator<Item = String>) -> Result<Options, String> {
+        let mut o = Options { cases: 200, first: 1_000_000, jobs: 2, check: false, replay: None, keep: None };
+        let mut args = args.peekable();
+        while let Some(flag) = args.next() {
+            let mut value = || args.next().ok_or(format!("{flag} needs a value"));
+            match flag.as_str() {
+                "--cases" => o.cases = number(&flag, &value()?)?,
+                "--first" => o.first = number(&flag, &value()?)?,
+                "--jobs" => o.jobs = number::<usize>(&flag, &value()?)?.max(1),
+                "--keep" => o.keep = Some(PathBuf::from(value()?)),
+                "--replay" => o.replay = Some(PathBuf::from(value()?)),
+                "--check" => o.check = true,
+                _ => return Err(format!("unknown argument {flag:?}\n{USAGE}")),
+            }
+        }
+        if o.replay.is_some() && o.keep.is_some() {
+            return Err("--replay judges a kept directory: it takes no --keep".into());
+        }
+        Ok(o)
+    }
+}
+
+fn number<T: std::str::FromStr>(flag: &str, v: &str) -> Result<T, String> {
+    v.parse().map_err(|_| format!("{flag}: expected a whole number, got {v:?}"))
 }
 
 fn simrod(dir: &Path, args: &[String]) -> Result<String, String> {
@@ -517,12 +553,20 @@ fn pct(a: usize, b: usize) -> String {
 }
 
 fn main() {
-    let n: u64 = arg("--cases").and_then(|v| v.parse().ok()).unwrap_or(200);
-    let first: u64 = arg("--first").and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
-    let jobs: usize = arg("--jobs").and_then(|v| v.parse().ok()).unwrap_or(2).max(1);
-    let check = std::env::args().any(|a| a == "--check");
-    let replay = arg("--replay").map(PathBuf::from);
-    let keep = replay.clone().or_else(|| arg("--keep").map(PathBuf::from));
+    if std::env::args().any(|a| a == "-h" || a == "--help") {
+        println!("{USAGE}");
+        return;
+    }
+    let o = match Options::parse(std::env::args().skip(1)) {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(2);
+        }
+    };
+    let (n, first, jobs, check) = (o.cases, o.first, o.jobs, o.check);
+    let replay = o.replay;
+    let keep = replay.clone().or(o.keep);
     println!(
         "{:>9} {:<22} {:>4} {:>6} {:>6} {:>7}  last verdict",
         "seed", "class", "runs", "honest", "rounds", "s"
