@@ -837,6 +837,17 @@ fn confirm(
         worse = worse_somewhere(p, sim0, &after, rows, inp.o)
             .map(|(name, f, k)| format!("it would make {name} worse on run {} ({k:.2}x its RMSE)", f + 1));
     }
+    // Against the user's current model too, when the table is fitted on top of a
+    // proposal: proposal and table together must not make a channel worse than what the
+    // user has now (the same simulation when the table stands alone).
+    if worse.is_none() && inp.fx != inp.o.base {
+        worse = worse_somewhere(p, &p.base_sim, &after, rows, inp.o).map(|(name, f, k)| {
+            format!(
+                "with the proposal beside it, it would make {name} worse on run {} ({k:.2}x its RMSE)",
+                f + 1
+            )
+        });
+    }
     // Against the maps before any empirical correction too: a loop that adds a table
     // each round must not walk a run's error up by steps each within the guard.
     if let (None, Some(before)) = (&worse, &b.sim_before) {

@@ -427,8 +427,11 @@ fn tables(twin: &dyn Twin, ev: &Evidence, v: Verdict) -> (Verdict, Option<Empiri
     let can_beat = v.removed + PREFER_TABLE_MARGIN <= 1.0;
     match v.kind {
         VerdictKind::Unexplained if p.excess_ratio > 1.0 + TABLE_LEAST_EXCESS => {
-            let e = fit(o.base);
-            (v, e)
+            let alone = fit(o.base);
+            match beside_refused(ev, &v, alone.as_ref(), &fit) {
+                Some((with, t)) => (with, Some(t)),
+                None => (v, alone),
+            }
         }
         VerdictKind::Partial => {
             let alone = if can_beat { fit(o.base) } else { None };
@@ -459,6 +462,24 @@ fn tables(twin: &dyn Twin, ev: &Evidence, v: Verdict) -> (Verdict, Option<Empiri
         }
         _ => (v, None),
     }
+}
+
+/// The best candidate refused only for making a channel worse
+/// ([`Evidence::refused_for_worse`]), proposed with a map correction fitted on top of it,
+/// when the two make no channel worse than the current model (the table's guard) and
+/// remove [`KEEP_BESIDE_TABLE`] more of the excess than the table `alone` does.
+fn beside_refused(
+    ev: &Evidence,
+    v: &Verdict,
+    alone: Option<&Empirical>,
+    fit: &dyn Fn(Effects) -> Option<Empirical>,
+) -> Option<(Verdict, Empirical)> {
+    let c = ev.refused_for_worse()?;
+    let t = fit(ev.proposal_of(c)).filter(|t| t.refused.is_none())?;
+    let together = c.reduction() + (1.0 - c.reduction()) * t.removes();
+    let table_alone = alone.filter(|e| e.refused.is_none()).map_or(0.0, Empirical::removes);
+    (together >= table_alone + KEEP_BESIDE_TABLE)
+        .then(|| (ev.with_table(c, together, v.unexplained.clone()), t))
 }
 
 /// Least excess over the noise energy (a share of it) an unexplained residual must have

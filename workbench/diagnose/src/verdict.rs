@@ -104,6 +104,47 @@ impl Evidence<'_> {
         self.worse(&f.sim)
     }
 
+    /// The best significant candidate refused only because it makes a channel worse,
+    /// when it removes at least `unexplained_fraction` of the excess: a real effect can
+    /// do that where a wrong map's error cancelled part of its own (a connector
+    /// resistance beside an inverter map that draws too little current), and is then
+    /// tried with a map correction beside it ([`Self::with_table`]).
+    pub(super) fn refused_for_worse(&self) -> Option<&Candidate> {
+        let c = self.ranking.iter().find(|c| c.significant)?;
+        let f = self.after(c.effect)?;
+        let only_worse = c.drift.is_none()
+            && self.p.e0 - f.energy >= self.o.min_reduction_of_noise * self.p.e_noise
+            && !self.absorbs(c, &f.sim)
+            && self.worse(&f.sim).is_some();
+        (only_worse && c.reduction() >= self.o.unexplained_fraction).then_some(c)
+    }
+
+    /// The base effects plus candidate `c`'s refitted values.
+    pub(super) fn proposal_of(&self, c: &Candidate) -> Effects {
+        self.proposed(Some(c))
+    }
+
+    /// The partial verdict naming `c` with a map correction beside it that removes
+    /// `together` of the excess with it (`c` alone makes a channel worse).
+    pub(super) fn with_table(&self, c: &Candidate, together: f64, loc: Option<Location>) -> Verdict {
+        let worse = self.after(c.effect).and_then(|f| self.worse(&f.sim)).unwrap_or_default();
+        let sentence = format!(
+            "partly explained: {} removes {:.0} % of the error above noise, but alone {worse}; with the map correction below beside it the two remove {:.0} % and make no channel worse",
+            describe(c),
+            100.0 * c.reduction(),
+            100.0 * together
+        );
+        Verdict {
+            kind: VerdictKind::Partial,
+            sentence,
+            lead: Some(c.effect),
+            unexplained: loc,
+            proposed: self.proposal_of(c),
+            named: vec![c.effect],
+            removed: c.reduction(),
+        }
+    }
+
     /// Whether `sim` makes some channel worse, on the run or on one run of a campaign
     /// ([`worse_somewhere`]), said for the user: a proposal that trades one run's error
     /// for another's is not a physical effect of both, and the user would be told to
