@@ -509,6 +509,10 @@ pub(super) struct Inputs<'a> {
     /// proposes).
     pub fx: Effects,
     pub channels: &'a [Channel],
+    /// Judge "worse" against the current model only (without `fx`'s proposal): set
+    /// when the proposal alone makes a channel worse and only the two together are
+    /// offered.
+    pub against_current: bool,
 }
 
 /// What the current model (with the proposal) leaves, on the samples the table fits read.
@@ -821,7 +825,7 @@ fn confirm(
             .collect();
         let (rb, ra) = (rmse(&meas, &before, &all), rmse(&meas, &now, &all));
         e_after += w[c] * ra * ra * rows.len() as f64;
-        if ra > WORSE * rb && worse.is_none() {
+        if ra > WORSE * rb && worse.is_none() && !inp.against_current {
             worse = Some(format!("it would make {} worse ({:.3} -> {:.3})", name.name(), rb, ra));
         }
         channels.push(ChannelChange {
@@ -833,7 +837,7 @@ fn confirm(
     }
     // On each run of a campaign too: a table that helps one run and harms another is
     // refused.
-    if worse.is_none() {
+    if worse.is_none() && !inp.against_current {
         worse = worse_somewhere(p, sim0, &after, rows, inp.o)
             .map(|(name, f, k)| format!("it would make {name} worse on run {} ({k:.2}x its RMSE)", f + 1));
     }

@@ -415,8 +415,10 @@ fn stages(
 /// the library's proposal, the proposal is withdrawn ([`table_beats_library`]); else it
 /// is fitted on top of the proposal, for what the proposal leaves.
 fn tables(twin: &dyn Twin, ev: &Evidence, v: Verdict) -> (Verdict, Option<Empirical>) {
-    let fit =
-        |fx: Effects| correct(&EmpiricalInputs { twin, p: ev.p, o: ev.o, fx, channels: twin.channels() });
+    let on = |fx: Effects, against_current: bool| {
+        correct(&EmpiricalInputs { twin, p: ev.p, o: ev.o, fx, channels: twin.channels(), against_current })
+    };
+    let fit = |fx: Effects| on(fx, false);
     let (p, o) = (ev.p, ev.o);
     // Each fit costs a simulation per map node: only where it can change the answer. A
     // table cannot beat a proposal that leaves less than the margin, and a residual
@@ -428,7 +430,7 @@ fn tables(twin: &dyn Twin, ev: &Evidence, v: Verdict) -> (Verdict, Option<Empiri
     match v.kind {
         VerdictKind::Unexplained if p.excess_ratio > 1.0 + TABLE_LEAST_EXCESS => {
             let alone = fit(o.base);
-            match beside_refused(ev, &v, alone.as_ref(), &fit) {
+            match beside_refused(ev, &v, alone.as_ref(), &|fx| on(fx, true)) {
                 Some((with, t)) => (with, Some(t)),
                 None => (v, alone),
             }
@@ -466,8 +468,10 @@ fn tables(twin: &dyn Twin, ev: &Evidence, v: Verdict) -> (Verdict, Option<Empiri
 
 /// The best candidate refused only for making a channel worse
 /// ([`Evidence::refused_for_worse`]), proposed with a map correction fitted on top of it,
-/// when the two make no channel worse than the current model (the table's guard) and
-/// remove [`KEEP_BESIDE_TABLE`] more of the excess than the table `alone` does.
+/// when the two make no channel worse than the current model (the table's guard, judged
+/// against the current model only: the candidate's value was fitted with the wrong map
+/// and is refitted next round with the table in place) and remove [`KEEP_BESIDE_TABLE`]
+/// more of the excess than the table `alone` does.
 fn beside_refused(
     ev: &Evidence,
     v: &Verdict,
