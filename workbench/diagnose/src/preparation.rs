@@ -4,7 +4,7 @@
 
 use model_core::{Channel, Effects};
 
-use simrod_compare::structure::{self, noise_sigma, Window};
+use simrod_compare::structure::{self, weighting_sigma, Window};
 use simrod_io::progress::Progress;
 use simrod_twin::{Power, POWERS};
 
@@ -78,6 +78,7 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
     // 0.25 s: slower than a tachometer's counting window, faster than most model error.
     // The noise is the one thing estimated on every sample.
     let h = ((0.125 / twin.dt_s()).round() as usize).max(5);
+    let resolution = twin.resolution();
     let noise: Vec<(&'static str, f64)> = meas
         .iter()
         .zip(&base_sim)
@@ -86,7 +87,7 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         .collect();
     let weights = noise.iter().map(|(_, s)| 1.0 / (s * s)).collect();
     let segments = twin.segments();
-    let lines = mains_lines(meas, &base_sim, &twin.resolution(), &segments, twin.dt_s(), stride);
+    let lines = mains_lines(meas, &base_sim, &resolution, &segments, twin.dt_s(), stride);
     let base_sim: Vec<Vec<f32>> = base_sim.into_iter().map(|c| every(c, stride)).collect();
     let meas: Vec<Vec<f64>> = meas.iter().map(|m| every(m.clone(), stride)).collect();
     let powers = derived_powers(channels, &meas, &noise);
@@ -178,7 +179,7 @@ fn folds(segments: &[usize], stride: usize, n: usize) -> Vec<usize> {
 fn channel_sigma(m: &[f64], s: &[f32], h: usize) -> f64 {
     let r: Vec<f64> = m.iter().zip(s).map(|(a, b)| a - f64::from(*b)).collect();
     let rms = (m.iter().map(|v| v * v).sum::<f64>() / m.len().max(1) as f64).sqrt();
-    noise_sigma(&r, h).max(1e-4 * rms).max(1e-9)
+    weighting_sigma(&r, h).max(1e-4 * rms).max(1e-9)
 }
 
 /// A power the bench derives ([`simrod_twin::POWERS`]) from fitted channels, at their

@@ -105,7 +105,9 @@ impl Evidence<'_> {
     }
 
     /// The best significant candidate refused only because it makes a channel worse,
-    /// when it removes at least `unexplained_fraction` of the excess: a real effect can
+    /// when it removes at least `explain_fraction` of the excess (the bar a lead must
+    /// clear to be called missing: it is claimed although it harms a channel alone, and
+    /// a weaker one is as often a wrong map's error absorbed): a real effect can
     /// do that where a wrong map's error cancelled part of its own (a connector
     /// resistance beside an inverter map that draws too little current), and is then
     /// tried with a map correction beside it ([`Self::with_table`]).
@@ -116,7 +118,7 @@ impl Evidence<'_> {
             && self.p.e0 - f.energy >= self.o.min_reduction_of_noise * self.p.e_noise
             && !self.absorbs(c, &f.sim)
             && self.worse(&f.sim).is_some();
-        (only_worse && c.reduction() >= self.o.unexplained_fraction).then_some(c)
+        (only_worse && c.reduction() >= self.o.explain_fraction).then_some(c)
     }
 
     /// The base effects plus candidate `c`'s refitted values.
