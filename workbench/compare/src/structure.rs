@@ -372,7 +372,7 @@ impl HighPass {
             let mean = moving_mean(r, h);
             let hp: Vec<f64> =
                 (0..n).map(|t| if (h..n - h).contains(&t) { r[t] - mean[t] } else { f64::NAN }).collect();
-            let level = bursts.map_or_else(Vec::new, |floor| burst_levels(&hp, k, floor));
+            let level = bursts.and_then(|floor| burst_levels(&hp, k, floor)).unwrap_or_default();
             for (t, v) in hp.iter().enumerate() {
                 let (s, c) = cum[t];
                 let sq = level.get(t / k).copied().flatten().unwrap_or(v * v);
@@ -381,6 +381,7 @@ impl HighPass {
         }
         Self { cum, correction: k as f64 / (k as f64 - 1.0) }
     }
+
     /// σ of the high-pass part over samples `from..to` (0 without enough of them).
     fn sigma(&self, from: usize, to: usize) -> f64 {
         let (Some(a), Some(b)) = (self.cum.get(from), self.cum.get(to)) else { return 0.0 };
@@ -395,8 +396,8 @@ impl HighPass {
 /// Per block of `k` high-pass values `hp`: `Some(level)` for a burst (its mean square
 /// above [`BURST_VARIANCE`] times the median block's, which is at least `floor²`), the
 /// median mean square of its non-burst neighbours standing for its noise; `None` for
-/// the others.
-fn burst_levels(hp: &[f64], k: usize, floor: f64) -> Vec<Option<f64>> {
+/// the others. `None` overall when the bursts do not dominate ([`BURST_DOMINANCE`]).
+fn burst_levels(hp: &[f64], k: usize, floor: f64) -> Option<Vec<Option<f64>>> {
     let ms: Vec<Option<f64>> = hp
         .chunks(k)
         .map(|c| {
@@ -406,10 +407,10 @@ fn burst_levels(hp: &[f64], k: usize, floor: f64) -> Vec<Option<f64>> {
         })
         .collect();
     let known: Vec<f64> = ms.iter().flatten().copied().collect();
-    let Some(median) = simrod_numerics::stats::median(&known) else { return vec![None; ms.len()] };
+    let median = simrod_numerics::stats::median(&known)?;
     let limit = BURST_VARIANCE * median.max(floor * floor);
     if limit.is_nan() || limit <= 0.0 {
-        return vec![None; ms.len()];
+        return None;
     }
     let loud: Vec<bool> = ms.iter().map(|m| m.is_some_and(|m| m > limit)).collect();
     // The moving average smears a burst over `h` samples each side: into the next
@@ -429,15 +430,11 @@ fn burst_levels(hp: &[f64], k: usize, floor: f64) -> Vec<Option<f64>> {
     // Only where the bursts dominate the estimate: the twin and the plant differ at
     // fast transients by more than the noise in every run (the true model's error
     // too), and counting that as noise is what the windows' materiality is set against.
-    let (plain, kept) = ms.iter().zip(&levels).fold((0.0, 0.0), |(p, k), (m, l)| {
+    let (plain, kept) = ms.iter().zip(&levels).fold((0.0, 0.0), |(all, rest), (m, l)| {
         let m = m.unwrap_or(0.0);
-        (p + m, k + l.unwrap_or(m))
+        (all + m, rest + l.unwrap_or(m))
     });
-    if plain > BURST_DOMINANCE * kept {
-        levels
-    } else {
-        vec![None; ms.len()]
-    }
+    (plain > BURST_DOMINANCE * kept).then_some(levels)
 }
 
 fn block_mean(c: &[f64]) -> Option<f64> {
@@ -451,9 +448,6 @@ fn block_mean(c: &[f64]) -> Option<f64> {
 /// that part; only a burst of model error ten times the noise is left out ([`HighPass`]).
 /// `resolution`: the sensor's (0 for none). 0 when the series is shorter than two windows.
 pub fn noise_sigma(r: &[f64], h: usize, resolution: f64) -> f64 {
-    if r.len() < 2 * (2 * h + 1) {
-        return 0.0;
-    }
     HighPass::new(r, h, Some(resolution)).sigma(0, r.len())
 }
 
@@ -463,9 +457,6 @@ pub fn noise_sigma(r: &[f64], h: usize, resolution: f64) -> f64 {
 /// map 3 % off beside a friction and a delay was then taken for a wrong inverter map);
 /// the structure test, which decides whether anything is left, leaves them out.
 pub fn weighting_sigma(r: &[f64], h: usize) -> f64 {
-    if r.len() < 2 * (2 * h + 1) {
-        return 0.0;
-    }
     HighPass::new(r, h, None).sigma(0, r.len())
 }
 

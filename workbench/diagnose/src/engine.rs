@@ -478,12 +478,12 @@ fn beside_refused(
     alone: Option<&Empirical>,
     fit: &dyn Fn(Effects) -> Option<Empirical>,
 ) -> Option<(Verdict, Empirical)> {
-    let c = ev.refused_for_worse()?;
-    let t = fit(ev.proposal_of(c)).filter(|t| t.refused.is_none())?;
+    let (c, why) = ev.refused_for_worse()?;
+    let t = fit(ev.proposed(Some(c))).filter(|t| t.refused.is_none())?;
     let together = c.reduction() + (1.0 - c.reduction()) * t.removes();
     let table_alone = alone.filter(|e| e.refused.is_none()).map_or(0.0, Empirical::removes);
     (together >= table_alone + KEEP_BESIDE_TABLE)
-        .then(|| (ev.with_table(c, together, v.unexplained.clone()), t))
+        .then(|| (ev.with_table(c, &why, together, v.unexplained.clone()), t))
 }
 
 /// Least excess over the noise energy (a share of it) an unexplained residual must have

@@ -78,7 +78,6 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
     // 0.25 s: slower than a tachometer's counting window, faster than most model error.
     // The noise is the one thing estimated on every sample.
     let h = ((0.125 / twin.dt_s()).round() as usize).max(5);
-    let resolution = twin.resolution();
     let noise: Vec<(&'static str, f64)> = meas
         .iter()
         .zip(&base_sim)
@@ -87,7 +86,7 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         .collect();
     let weights = noise.iter().map(|(_, s)| 1.0 / (s * s)).collect();
     let segments = twin.segments();
-    let lines = mains_lines(meas, &base_sim, &resolution, &segments, twin.dt_s(), stride);
+    let lines = mains_lines(meas, &base_sim, &twin.resolution(), &segments, twin.dt_s(), stride);
     let base_sim: Vec<Vec<f32>> = base_sim.into_iter().map(|c| every(c, stride)).collect();
     let meas: Vec<Vec<f64>> = meas.iter().map(|m| every(m.clone(), stride)).collect();
     let powers = derived_powers(channels, &meas, &noise);

@@ -82,12 +82,19 @@ impl Evidence<'_> {
         c.significant && self.refusal(c).is_none()
     }
 
-    /// Why a significant candidate is not proposed, said for the user: its value drifts
-    /// over the run ([`Candidate::drift`]), it was not refitted, its refit removed less
-    /// than `min_reduction_of_noise` of the noise energy, it is a one-channel cause that
-    /// only absorbs part of what else is wrong on its channel ([`Self::absorbs`]), or it
-    /// makes some channel worse on some run ([`Self::worse`]). `None`: it counts.
+    /// Why a significant candidate is not proposed, said for the user: one of
+    /// [`Self::refusal_but_worse`]'s reasons, or it makes some channel worse on some run
+    /// ([`Self::worse`]). `None`: it counts.
     fn refusal(&self, c: &Candidate) -> Option<String> {
+        self.refusal_but_worse(c).or_else(|| self.after(c.effect).and_then(|f| self.worse(&f.sim)))
+    }
+
+    /// The refusals that no map correction beside the candidate can lift: its value
+    /// drifts over the run ([`Candidate::drift`]), it was not refitted, its refit removed
+    /// less than `min_reduction_of_noise` of the noise energy, or it is a one-channel
+    /// cause that only absorbs part of what else is wrong on its channel
+    /// ([`Self::absorbs`]).
+    fn refusal_but_worse(&self, c: &Candidate) -> Option<String> {
         if let Some(d) = &c.drift {
             return Some(format!("its {} drifts over the run", d.param));
         }
@@ -101,37 +108,37 @@ impl Evidence<'_> {
                 c.moves.first().copied().unwrap_or("its channel")
             ));
         }
-        self.worse(&f.sim)
+        None
     }
 
-    /// The best significant candidate refused only because it makes a channel worse,
-    /// when it removes at least `explain_fraction` of the excess (the bar a lead must
-    /// clear to be called missing: it is claimed although it harms a channel alone, and
-    /// a weaker one is as often a wrong map's error absorbed): a real effect can
-    /// do that where a wrong map's error cancelled part of its own (a connector
-    /// resistance beside an inverter map that draws too little current), and is then
-    /// tried with a map correction beside it ([`Self::with_table`]).
-    pub(super) fn refused_for_worse(&self) -> Option<&Candidate> {
+    /// The best significant candidate refused only because it makes a channel worse
+    /// (with that reason), when it removes at least `explain_fraction` of the excess (the
+    /// bar a lead must clear to be called missing: it is claimed although it harms a
+    /// channel alone, and a weaker one is as often a wrong map's error absorbed): a real
+    /// effect can do that where a wrong map's error cancelled part of its own (a
+    /// connector resistance beside an inverter map that draws too little current), and
+    /// is then tried with a map correction beside it ([`Self::with_table`]).
+    pub(super) fn refused_for_worse(&self) -> Option<(&Candidate, String)> {
         let c = self.ranking.iter().find(|c| c.significant)?;
-        let f = self.after(c.effect)?;
-        let only_worse = c.drift.is_none()
-            && self.p.e0 - f.energy >= self.o.min_reduction_of_noise * self.p.e_noise
-            && !self.absorbs(c, &f.sim)
-            && self.worse(&f.sim).is_some();
-        (only_worse && c.reduction() >= self.o.explain_fraction).then_some(c)
-    }
-
-    /// The base effects plus candidate `c`'s refitted values.
-    pub(super) fn proposal_of(&self, c: &Candidate) -> Effects {
-        self.proposed(Some(c))
+        if self.refusal_but_worse(c).is_some() || c.reduction() < self.o.explain_fraction {
+            return None;
+        }
+        let why = self.worse(&self.after(c.effect)?.sim)?;
+        Some((c, why))
     }
 
     /// The partial verdict naming `c` with a map correction beside it that removes
-    /// `together` of the excess with it (`c` alone makes a channel worse).
-    pub(super) fn with_table(&self, c: &Candidate, together: f64, loc: Option<Location>) -> Verdict {
-        let worse = self.after(c.effect).and_then(|f| self.worse(&f.sim)).unwrap_or_default();
+    /// `together` of the excess with it (`c` alone is refused `why`: it makes a channel
+    /// worse).
+    pub(super) fn with_table(
+        &self,
+        c: &Candidate,
+        why: &str,
+        together: f64,
+        loc: Option<Location>,
+    ) -> Verdict {
         let sentence = format!(
-            "partly explained: {} removes {:.0} % of the error above noise, but alone {worse}; with the map correction below beside it the two remove {:.0} % and make no channel worse",
+            "partly explained: {} removes {:.0} % of the error above noise, but alone {why}; with the map correction below beside it the two remove {:.0} % and make no channel worse",
             describe(c),
             100.0 * c.reduction(),
             100.0 * together
@@ -141,7 +148,7 @@ impl Evidence<'_> {
             sentence,
             lead: Some(c.effect),
             unexplained: loc,
-            proposed: self.proposal_of(c),
+            proposed: self.proposed(Some(c)),
             named: vec![c.effect],
             removed: c.reduction(),
         }
@@ -175,7 +182,7 @@ impl Evidence<'_> {
     }
 
     /// The base effects plus the lead's refitted values.
-    fn proposed(&self, lead: Option<&Candidate>) -> Effects {
+    pub(super) fn proposed(&self, lead: Option<&Candidate>) -> Effects {
         let found = lead.and_then(|l| self.fits.iter().find(|(ci, _)| self.cands[*ci].effect == l.effect));
         let Some((ci, f)) = found else { return self.o.base };
         let sp: Vec<&ParamSpec> = self.s.groups[*ci].1.iter().map(|&i| &self.s.specs[i]).collect();
