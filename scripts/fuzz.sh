@@ -18,6 +18,8 @@
 #                        temporary directory, deleted at exit)
 #   FUZZ_TARGET_DIR=DIR  cargo target directory of the fuzz build (default fuzz/target)
 #   FUZZ_ARGS="..."      extra libFuzzer flags, e.g. "-jobs=2 -workers=2" or "-max_len=20000"
+#   FUZZ_JOBS=N          targets fuzzed side by side (default: the number of cores;
+#                        each libFuzzer process uses one)
 #
 # Stable Rust: built with `--sanitizer none` (the sanitizers need nightly's -Zsanitizer);
 # libFuzzer's coverage instrumentation only needs stable -C flags. See docs/FUZZING.md.
@@ -29,6 +31,11 @@ SECS=${1:-20}
 shift $(($# > 0 ? 1 : 0))
 if ! [[ $SECS =~ ^[0-9]+$ ]] || [ "$SECS" -lt 1 ]; then
   echo "usage: scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET...]" >&2
+  exit 2
+fi
+JOBS=${FUZZ_JOBS:-$(nproc)}
+if ! [[ $JOBS =~ ^[0-9]+$ ]] || [ "$JOBS" -lt 1 ]; then
+  echo "FUZZ_JOBS must be a whole number >= 1, not '$JOBS'" >&2
   exit 2
 fi
 ALL_TARGETS=(csv mat toml_files serial)
@@ -82,15 +89,15 @@ report_failure() { # target log
   echo "    log: $2 (FUZZ_WORK=DIR keeps it)" >&2
 }
 
-FAILED=()
-SUMMARY=()
-for t in "${TARGETS[@]}"; do
+# One target: its regressions, then SECS of fuzzing. Writes what it prints to
+# $WORK/<target>/out, its summary line to .../summary and, if it failed, the reason
+# to .../failed (targets run side by side, so nothing is shared but these files).
+fuzz_one() {
+  local t=$1 bad=0 r log status runs rate cov line
   mkdir -p "$WORK/$t/corpus" "$ROOT/fuzz/artifacts/$t"
-
   mapfile -t regs < <(find "$ROOT/fuzz/regressions/$t" -maxdepth 1 -type f ! -name '.*' ! -name '*.md' 2>/dev/null | sort)
   if [ ${#regs[@]} -gt 0 ]; then
     step "$t: ${#regs[@]} regression input(s) from fuzz/regressions/$t/"
-    bad=0
     for r in "${regs[@]}"; do
       log=$WORK/$t/regression-$(basename "$r").log
       if ! "$BIN/$t" -timeout=10 "$r" >"$log" 2>&1; then
@@ -101,14 +108,14 @@ for t in "${TARGETS[@]}"; do
     if [ $bad -eq 0 ]; then
       echo "$t: regressions pass"
     else
-      FAILED+=("$t ($bad regression(s))")
+      echo "$t ($bad regression(s))" >>"$WORK/$t/failed"
     fi
   fi
 
   step "$t: fuzzing ${SECS}s on a copy of fuzz/corpus/$t/"
   log=$WORK/$t/fuzz.log
   # The words the parser compares strings against (not traced without a sanitizer).
-  dict=()
+  local dict=()
   [ -f "$ROOT/fuzz/dict/$t.dict" ] && dict=(-dict="$ROOT/fuzz/dict/$t.dict")
   # First corpus dir: scratch (libFuzzer writes new inputs there); second: the seeds.
   # shellcheck disable=SC2086 # FUZZ_ARGS is a list of flags
@@ -119,7 +126,7 @@ for t in "${TARGETS[@]}"; do
   else
     status=FAILED
     report_failure "$t" "$log"
-    FAILED+=("$t")
+    echo "$t" >>"$WORK/$t/failed"
   fi
   # libFuzzer's final stats (-print_final_stats=1); older versions say `_runs`.
   runs=$(sed -n 's/^stat::number_of_executed_\(units\|runs\): *//p' "$log" | tail -1)
@@ -127,7 +134,31 @@ for t in "${TARGETS[@]}"; do
   cov=$(grep -oE 'cov: [0-9]+ ft: [0-9]+ corp: [0-9]+' "$log" | tail -1 || true)
   line=$(printf '%-11s %-6s %12s runs %8s exec/s  %s' "$t" "$status" "${runs:-?}" "${rate:-?}" "${cov:-}")
   echo "$line"
-  SUMMARY+=("$line")
+  echo "$line" >"$WORK/$t/summary"
+}
+
+# libFuzzer runs on one core: FUZZ_JOBS targets (default: the number of cores) fuzz
+# side by side, each for the full SECS, and their output is printed in target order.
+for t in "${TARGETS[@]}"; do
+  mkdir -p "$WORK/$t"
+  rm -f "$WORK/$t/failed" "$WORK/$t/summary"
+  fuzz_one "$t" >"$WORK/$t/out" 2>&1 &
+  while [ "$(jobs -rp | wc -l)" -ge "$JOBS" ]; do
+    wait -n || true
+  done
+done
+wait
+FAILED=()
+SUMMARY=()
+for t in "${TARGETS[@]}"; do
+  cat "$WORK/$t/out"
+  [ -f "$WORK/$t/failed" ] && mapfile -t -O "${#FAILED[@]}" FAILED <"$WORK/$t/failed"
+  if [ -f "$WORK/$t/summary" ]; then
+    SUMMARY+=("$(cat "$WORK/$t/summary")")
+  else
+    SUMMARY+=("$t: no summary (the run stopped early; see its output above)")
+    FAILED+=("$t")
+  fi
 done
 
 step "summary (${SECS}s per target)"

@@ -62,12 +62,16 @@ cargo test
 step "physics plant speed (target 2 s per 60 s of bench time; CI guard 6 s)"
 cargo bench -p simrod-plant --bench plant_speed -- --quick --guard 6
 
+# The examples and the `simrod` binary they drive, built with the workspace's features
+# as `cargo test` built them (a `-p workbench` build resolves features for one package
+# and compiles 20 crates again, about 100 s).
+cargo build --workspace --bins --examples
+
 step "peak memory of compare and diagnose on a 40 MB run (aims: 4x / 8x the file + 200 MB; the 300 MB run: --mb 300)"
-cargo build -p workbench --bin simrod
-cargo run -p workbench --example memory -- --mb 40 --guard
+"${CARGO_TARGET_DIR:-target}"/debug/examples/memory --mb 40 --guard
 
 step "issue 12's blind loop, short: 2 cases on tuning seeds (the proof: --cases 200, seeds from 1,000,000)"
-cargo run -p workbench --example blind_loop -- --cases 2 --first 500000
+"${CARGO_TARGET_DIR:-target}"/debug/examples/blind_loop --cases 2 --first 500000
 
 step "fuzz smoke run: CSV, MAT, TOML files, serial decoder, 20 s each on the committed corpus (docs/FUZZING.md)"
 scripts/fuzz.sh 20
