@@ -62,10 +62,10 @@ cargo test
 step "physics plant speed (target 2 s per 60 s of bench time; CI guard 6 s)"
 cargo bench -p simrod-plant --bench plant_speed -- --quick --guard 6
 
-# The examples and the `simrod` binary they drive, built with the workspace's features
-# as `cargo test` built them (a `-p workbench` build resolves features for one package
-# and compiles 20 crates again, about 100 s).
-cargo build --workspace --bins --examples
+# The examples and the `simrod` binary they drive, as `cargo test` built them (the same
+# default members, so the same features: nothing to compile). A `-p workbench` build
+# resolves features for one package and compiles 20 crates again (about 100 s).
+cargo build --bins --examples
 
 step "peak memory of compare and diagnose on a 40 MB run (aims: 4x / 8x the file + 200 MB; the 300 MB run: --mb 300)"
 "${CARGO_TARGET_DIR:-target}"/debug/examples/memory --mb 40 --guard
