@@ -34,7 +34,8 @@
 //!   maps are perturbed, the twin effects that model a perturbed parameter or map
 //!   exactly (`PERTURBED_TWIN`: a bench whose SuT inertia is 8 % high has
 //!   `inertia_scale.sut = 1.08`); the figure counting only the hidden effects is
-//!   printed too;
+//!   printed too, and how many false effects were first claimed on top of an empirical
+//!   table (in a round whose model already ran on a corrected data directory);
 //! - **found**: a hidden library effect that moves a channel of the scenario's run (the
 //!   truth file's `moves`, [`excited_ids`]) is in the final file; its
 //!   95 % interval, in the round that first named it, holds the truth (coverage).
@@ -95,6 +96,9 @@ struct Outcome {
     honest: bool,
     miss: bool,
     false_claim: Vec<String>,
+    /// Of `false_claim`, the effects first written in a round whose model already ran on
+    /// an empirically corrected data directory (a table fitted in an earlier round).
+    false_on_table: Vec<String>,
     /// The same counting only the hidden effects as the truth (not the perturbation).
     false_claim_strict: Vec<String>,
     /// Hidden library effects that move a channel of the run ([`excited_ids`]): (id, found).
@@ -278,12 +282,23 @@ fn floors(c: &Case, names: &[Vec<(String, f64)>]) -> Result<Vec<Vec<(f64, bool)>
         .collect()
 }
 
+/// What the loop did: every round's JSON, what each round ran with, what was added in
+/// the end.
+struct Rounds {
+    json: Vec<Value>,
+    /// What was added before each round (the model that round diagnosed).
+    with: Vec<Added>,
+    added: Added,
+}
+
 /// The loop: diagnose, add what it wrote (an effect file, an empirically corrected data
-/// directory), again. Returns the rounds' JSON and what was added in the end.
-fn blind_loop(dir: &Path, c: &Case) -> Result<(Vec<Value>, Added), String> {
+/// directory), again.
+fn blind_loop(dir: &Path, c: &Case) -> Result<Rounds, String> {
     let runs: Vec<String> = c.runs.iter().map(|p| p.display().to_string()).collect();
     let (mut rounds, mut added): (Vec<Value>, Added) = (Vec::new(), Added::default());
+    let mut with = Vec::new();
     for k in 1..=ROUNDS {
+        with.push(added.clone());
         let (out, data) = (format!("r{k}.toml"), format!("d{k}"));
         let mut a = strings(&["diagnose"]);
         a.extend(runs.iter().cloned());
@@ -321,7 +336,23 @@ fn blind_loop(dir: &Path, c: &Case) -> Result<(Vec<Value>, Added), String> {
             added.data = Some(data);
         }
     }
-    Ok((rounds, added))
+    Ok(Rounds { json: rounds, with, added })
+}
+
+/// The effects of `claims` first written in a round that ran on an empirically
+/// corrected data directory: a library effect claimed on top of a fitted table.
+fn claimed_on_table(dir: &Path, r: &Rounds, claims: &[String]) -> Vec<String> {
+    claims
+        .iter()
+        .filter(|e| {
+            let first = (0..r.json.len()).find(|&k| {
+                r.json[k].get("effects_written").is_some()
+                    && ids_in(dir, Some(&format!("r{}.toml", k + 1))).contains(e.as_str())
+            });
+            first.is_some_and(|k| r.with[k].data.is_some())
+        })
+        .cloned()
+        .collect()
 }
 
 /// The twin effect that models each data item a map perturbation changes (the truth
@@ -426,8 +457,9 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
     let t0 = Instant::now();
     let before = twin_errors(dir, c, &Added::default())?;
     let floor = floors(c, &before)?;
-    let (rounds, added) = blind_loop(dir, c)?;
-    let after = if added == Added::default() { before.clone() } else { twin_errors(dir, c, &added)? };
+    let loop_ = blind_loop(dir, c)?;
+    let (rounds, added) = (&loop_.json, &loop_.added);
+    let after = if *added == Added::default() { before.clone() } else { twin_errors(dir, c, added)? };
     let last_j = rounds.last().cloned().unwrap_or(Value::Null);
     let kind = last_j["kind"].as_str().unwrap_or("").to_owned();
     let located = last_j["unexplained"]["channel"].as_str().map(str::to_owned);
@@ -482,7 +514,7 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         .map(|(id, param, value)| {
             let found = claimed.contains(*id);
             if found {
-                if let Some(inside) = covered(&rounds, id, param, *value) {
+                if let Some(inside) = covered(rounds, id, param, *value) {
                     coverage.0 += usize::from(inside);
                     coverage.1 += 1;
                 }
@@ -496,6 +528,7 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         nothing_hidden: c.scenario.picks.is_empty() && c.scenario.perturb_maps.is_none(),
         honest,
         miss: kind == "nothing_missing" && any_moved_high,
+        false_on_table: claimed_on_table(dir, &loop_, &false_claim),
         false_claim,
         false_claim_strict,
         library,
@@ -608,10 +641,11 @@ fn one_case(seed: u64, keep: Option<&Path>, replay: bool) -> (String, Option<Out
                 format!("{}{}", o.rounds, if o.empirical { "E" } else { "" }),
                 o.seconds,
                 if o.miss { "[MISS] " } else { "" },
-                if o.false_claim.is_empty() {
-                    String::new()
-                } else {
-                    format!("[FALSE {:?}] ", o.false_claim)
+                match (o.false_claim.is_empty(), o.false_on_table.is_empty()) {
+                    (true, _) => String::new(),
+                    (false, true) => format!("[FALSE {:?}] ", o.false_claim),
+                    (false, false) =>
+                        format!("[FALSE {:?}, on a table {:?}] ", o.false_claim, o.false_on_table),
                 },
                 o.last
             );
@@ -673,6 +707,13 @@ fn summary(o: &[Outcome]) -> bool {
     println!(
         "  counting a perturbed parameter's own effect as false too: {}",
         pct(count(&|x| !x.false_claim_strict.is_empty()), total)
+    );
+    let on_table: usize = o.iter().map(|x| x.false_on_table.len()).sum();
+    let claims: usize = o.iter().map(|x| x.false_claim.len()).sum();
+    println!(
+        "  false effects first claimed on top of an empirical table: {} of the {claims} false effects, in {} of the {false_claims} cases",
+        on_table,
+        count(&|x| !x.false_on_table.is_empty())
     );
     println!("misses: {}", count(&|x| x.miss));
     println!("library effects found, single runs: {}  (target >= 95 %)", pct(fs, ns));
