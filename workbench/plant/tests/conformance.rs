@@ -279,11 +279,17 @@ fn table(dt_us: u32) -> Vec<String> {
     failures
 }
 
+/// Set to print the same table with the twin at the bench rate (1 ms) first, for
+/// information: the twin's discretization of sharp transients is part of the difference
+/// there (`docs/MODEL.md`, Conformance). Nothing is asserted on it, so it is not run by
+/// default (it costs as much as the asserted table).
+const AT_BENCH_RATE: &str = "SIMROD_CONFORMANCE_1MS";
+
 #[test]
 fn every_library_effect_moves_plant_and_twin_alike() {
-    // The bench rate, for information: the twin's 1 ms discretization of sharp
-    // transients is part of the difference there.
-    let _ = table(DT_US);
+    if std::env::var_os(AT_BENCH_RATE).is_some() {
+        let _ = table(DT_US);
+    }
     let failures = table(FINE_DT_US);
     assert!(failures.is_empty(), "{failures:#?}");
 }
