@@ -286,8 +286,8 @@ fn floors(c: &Case, names: &[Vec<(String, f64)>]) -> Result<Vec<Vec<(f64, bool)>
 /// the end.
 struct Rounds {
     json: Vec<Value>,
-    /// What was added before each round (the model that round diagnosed).
-    with: Vec<Added>,
+    /// Per round: whether its model ran on an empirically corrected data directory.
+    on_table: Vec<bool>,
     added: Added,
 }
 
@@ -296,9 +296,9 @@ struct Rounds {
 fn blind_loop(dir: &Path, c: &Case) -> Result<Rounds, String> {
     let runs: Vec<String> = c.runs.iter().map(|p| p.display().to_string()).collect();
     let (mut rounds, mut added): (Vec<Value>, Added) = (Vec::new(), Added::default());
-    let mut with = Vec::new();
+    let mut on_table = Vec::new();
     for k in 1..=ROUNDS {
-        with.push(added.clone());
+        on_table.push(added.data.is_some());
         let (out, data) = (format!("r{k}.toml"), format!("d{k}"));
         let mut a = strings(&["diagnose"]);
         a.extend(runs.iter().cloned());
@@ -336,23 +336,21 @@ fn blind_loop(dir: &Path, c: &Case) -> Result<Rounds, String> {
             added.data = Some(data);
         }
     }
-    Ok(Rounds { json: rounds, with, added })
+    Ok(Rounds { json: rounds, on_table, added })
 }
 
 /// The effects of `claims` first written in a round that ran on an empirically
 /// corrected data directory: a library effect claimed on top of a fitted table.
 fn claimed_on_table(dir: &Path, r: &Rounds, claims: &[String]) -> Vec<String> {
-    claims
-        .iter()
-        .filter(|e| {
-            let first = (0..r.json.len()).find(|&k| {
-                r.json[k].get("effects_written").is_some()
-                    && ids_in(dir, Some(&format!("r{}.toml", k + 1))).contains(e.as_str())
-            });
-            first.is_some_and(|k| r.with[k].data.is_some())
-        })
-        .cloned()
-        .collect()
+    let (mut seen, mut first_on_table) = (BTreeSet::new(), BTreeSet::new());
+    for (j, &table) in r.json.iter().zip(&r.on_table) {
+        for id in ids_in(dir, j["effects_written"].as_str()) {
+            if seen.insert(id.clone()) && table {
+                first_on_table.insert(id);
+            }
+        }
+    }
+    claims.iter().filter(|e| first_on_table.contains(*e)).cloned().collect()
 }
 
 /// The twin effect that models each data item a map perturbation changes (the truth
