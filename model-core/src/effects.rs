@@ -86,13 +86,25 @@ impl fmt::Display for Range {
     }
 }
 
-/// The finite-difference step of a fitted parameter.
+/// An amount of a fitted parameter — its finite-difference step, its step bias — in its
+/// unit or as a share of a value of it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Step {
-    /// An absolute step, in the parameter's unit.
+    /// In the parameter's unit.
     Abs(f64),
-    /// A fraction of the neutral value (for overrides of model values that differ in scale).
+    /// A share of the value (the neutral value for a step: overrides of model values
+    /// differ in scale).
     Rel(f64),
+}
+
+impl Step {
+    /// The amount at `value`.
+    pub fn at(self, value: f64) -> f64 {
+        match self {
+            Self::Abs(d) => d,
+            Self::Rel(r) => r * value.abs(),
+        }
+    }
 }
 
 /// What `simrod diagnose` needs to fit a parameter: the step of its sensitivity (the
@@ -113,16 +125,36 @@ pub struct Fit {
     /// bench, 2° and 5° both fit worse than none), so a diagnosis scans the parameter
     /// on this grid from `lower` up to `to` instead of trusting its linearisation there.
     pub scan: Option<(f64, f64)>,
+    /// How far the twin's 1 ms step moves a fit of the parameter on the bench's data:
+    /// the largest error `workbench/examples/step_bias.rs` measures (the physics plant
+    /// with the bench's acquisition, every built-in profile), rounded up, in the unit or
+    /// as a share of the value, whichever the error scales with; none for a parameter
+    /// not measured there. A diagnosis counts it in the parameter's uncertainty.
+    pub step_bias: Step,
 }
 
 impl Fit {
     /// An absolute step and bounds.
     pub const fn abs(step: f64, lower: f64, upper: f64) -> Self {
-        Self { step: Step::Abs(step), lower, upper, whole_steps: false, scan: None }
+        Self {
+            step: Step::Abs(step),
+            lower,
+            upper,
+            whole_steps: false,
+            scan: None,
+            step_bias: Step::Abs(0.0),
+        }
     }
     /// A step relative to the neutral value, and bounds.
     pub const fn rel(step: f64, lower: f64, upper: f64) -> Self {
-        Self { step: Step::Rel(step), lower, upper, whole_steps: false, scan: None }
+        Self {
+            step: Step::Rel(step),
+            lower,
+            upper,
+            whole_steps: false,
+            scan: None,
+            step_bias: Step::Abs(0.0),
+        }
     }
     /// Realised in whole time steps.
     pub const fn in_whole_steps(self) -> Self {
@@ -132,12 +164,13 @@ impl Fit {
     pub const fn scanned(self, step: f64, to: f64) -> Self {
         Self { scan: Some((step, to)), ..self }
     }
+    /// Biased by the twin's step by up to `bias` ([`Fit::step_bias`]).
+    pub const fn step_biased(self, bias: Step) -> Self {
+        Self { step_bias: bias, ..self }
+    }
     /// The step at a neutral value.
     pub fn delta(&self, neutral: f64) -> f64 {
-        match self.step {
-            Step::Abs(d) => d,
-            Step::Rel(r) => r * neutral,
-        }
+        self.step.at(neutral)
     }
 }
 
@@ -397,8 +430,8 @@ const fn proof(param: &'static str, lo: f32, hi: f32, profile: Builtin, scales: 
 const SCALE: Range = Range::closed(0.1, 10.0);
 /// A multiplier on a sensor's reading.
 const GAIN: Range = Range::closed(0.1, 10.0);
-const FACTOR: Option<Fit> = Some(Fit::abs(0.05, 0.1, 5.0));
-const SENSOR_GAIN: Option<Fit> = Some(Fit::abs(0.02, 0.5, 2.0));
+const FACTOR: Option<Fit> = Some(Fit::abs(0.05, 0.1, 5.0).step_biased(Step::Rel(2.4e-4)));
+const SENSOR_GAIN: Option<Fit> = Some(Fit::abs(0.02, 0.5, 2.0).step_biased(Step::Rel(7.4e-4)));
 const SPEED_GAIN: Option<Fit> = Some(Fit::abs(0.01, 0.5, 2.0));
 // A sensor offset may be about a tenth of the channel's span; the search a third of that.
 const OFFSET_V: Range = Range::closed(-30.0, 30.0);
@@ -407,12 +440,12 @@ const OFFSET_NM: Range = Range::closed(-200.0, 200.0);
 const OFFSET_A: Range = Range::closed(-200.0, 200.0);
 const OFFSET_V_FIT: Option<Fit> = Some(Fit::abs(0.1, -5.0, 5.0));
 const OFFSET_RPM_FIT: Option<Fit> = Some(Fit::abs(10.0, -500.0, 500.0));
-const OFFSET_NM_FIT: Option<Fit> = Some(Fit::abs(1.0, -60.0, 60.0));
+const OFFSET_NM_FIT: Option<Fit> = Some(Fit::abs(1.0, -60.0, 60.0).step_biased(Step::Abs(0.012)));
 const OFFSET_A_FIT: Option<Fit> = Some(Fit::abs(0.5, -30.0, 30.0));
 /// A sensor's lag or delay [s]: up to a second (far beyond a real chain's 1-100 ms).
 const SENSOR_TIME: Range = Range::closed(0.0, 1.0);
-const LAG_FIT: Option<Fit> = Some(Fit::abs(0.01, 0.0, 0.2));
-const DELAY_FIT: Option<Fit> = Some(Fit::abs(0.02, 0.0, 0.1).in_whole_steps());
+const LAG_FIT: Option<Fit> = Some(Fit::abs(0.01, 0.0, 0.2).step_biased(Step::Rel(0.03)));
+const DELAY_FIT: Option<Fit> = Some(Fit::abs(0.02, 0.0, 0.1).in_whole_steps().step_biased(Step::Abs(1.4e-3)));
 
 // The order is the diagnose library's order (its ranking breaks ties by it) and the
 // order of sections in written effect files.
@@ -422,9 +455,9 @@ effects! {
         DifferentialFriction { coulomb_nm: 0.0, viscous_nm_s: 0.0 },
         proof proof("coulomb_nm", 2.0, 6.0, TP07, (1.0, 1.0)), Whole;
     {
-        coulomb_nm(.coulomb_nm): "N m", Range::closed(0.0, 200.0), fit Some(Fit::abs(1.0, 0.0, 60.0)), model None,
+        coulomb_nm(.coulomb_nm): "N m", Range::closed(0.0, 200.0), fit Some(Fit::abs(1.0, 0.0, 60.0).step_biased(Step::Abs(0.037))), model None,
             "Coulomb friction torque at the case, axle frame (0 = off)";
-        viscous_nm_s_per_rad(.viscous_nm_s): "N m s/rad", Range::closed(0.0, 100.0), fit Some(Fit::abs(0.2, 0.0, 20.0)),
+        viscous_nm_s_per_rad(.viscous_nm_s): "N m s/rad", Range::closed(0.0, 100.0), fit Some(Fit::abs(0.2, 0.0, 20.0).step_biased(Step::Abs(2.1e-3))),
             model None, "viscous coefficient at the case, axle frame (0 = off)";
     }
     /// Multipliers on the L, R friction maps (1 = off).
@@ -438,7 +471,7 @@ effects! {
     gear_backlash => gear_backlash: GearBacklash = GearBacklash { backlash_deg: 0.0 },
         proof proof("backlash_deg", 1.0, 4.0, TP07, (1.0, 1.0)), Whole;
     {
-        backlash_deg(.backlash_deg): "deg", Range::closed(0.0, 30.0), fit Some(Fit::abs(0.5, 0.0, 20.0).scanned(0.25, 10.0)),
+        backlash_deg(.backlash_deg): "deg", Range::closed(0.0, 30.0), fit Some(Fit::abs(0.5, 0.0, 20.0).scanned(0.25, 10.0).step_biased(Step::Abs(0.054))),
             model None, "total free play at the differential case (0 = off)";
     }
     /// [s] pure delay between the throttle and the speed controller (thesis 6.1).
@@ -446,7 +479,7 @@ effects! {
     controller_delay => controller_delay_s: f32 = 0.0,
         proof proof("delay_s", 0.05, 0.15, TP14, (1.0, 0.0)), Whole;
     {
-        delay_s(): "s", Range::closed(0.0, 10.0), fit Some(Fit::abs(0.02, 0.0, 0.25).in_whole_steps()), model None,
+        delay_s(): "s", Range::closed(0.0, 10.0), fit Some(Fit::abs(0.02, 0.0, 0.25).in_whole_steps().step_biased(Step::Abs(9.7e-4))), model None,
             "throttle-to-controller delay, at most 256 steps (0 = off)";
     }
     /// Multipliers on the Curtis ramp rates `[accel, decel]` for `[forward, reverse]`
@@ -454,9 +487,9 @@ effects! {
     inverter_rate_scale => inverter_rate_scale: [[f32; 2]; 2] = [[1.0, 1.0], [1.0, 1.0]],
         proof proof("decel_fwd", 0.7, 0.9, TP14, (1.0, 0.0)), Whole;
     {
-        accel_fwd([0][0]): "-", SCALE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
+        accel_fwd([0][0]): "-", SCALE, fit Some(Fit::abs(0.05, 0.2, 5.0).step_biased(Step::Rel(8.2e-4))), model None,
             "multiplies the forward acceleration rates (1 = off)";
-        decel_fwd([0][1]): "-", SCALE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
+        decel_fwd([0][1]): "-", SCALE, fit Some(Fit::abs(0.05, 0.2, 5.0).step_biased(Step::Rel(4.8e-3))), model None,
             "multiplies the forward deceleration rates (1 = off)";
         accel_rev([1][0]): "-", SCALE, fit Some(Fit::abs(0.05, 0.2, 5.0)), model None,
             "multiplies the reverse acceleration rates (1 = off)";
@@ -467,43 +500,43 @@ effects! {
     coupling_stiffness => coupling_stiffness: Option<f32> = None,
         proof proof("stiffness_nm_per_rad", 6000.0, 12000.0, TP07, (1.0, 1.0)), Whole;
     {
-        stiffness_nm_per_rad(): "N m/rad", Range::closed(100.0, 1.0e6), fit Some(Fit::rel(0.2, 300.0, 60_000.0)),
+        stiffness_nm_per_rad(): "N m/rad", Range::closed(100.0, 1.0e6), fit Some(Fit::rel(0.2, 300.0, 60_000.0).step_biased(Step::Rel(0.11))),
             model Some(|p| p.coupling_stiffness), "replaces the flexible coupling stiffness";
     }
     /// [N m s/rad] replaces the coupling damping when set.
     coupling_damping => coupling_damping: Option<f32> = None,
         proof proof("damping_nm_s_per_rad", 10.0, 30.0, TP07, (1.0, 1.0)), Whole;
     {
-        damping_nm_s_per_rad(): "N m s/rad", Range::closed(0.0, 1000.0), fit Some(Fit::abs(2.0, 0.0, 300.0)),
+        damping_nm_s_per_rad(): "N m s/rad", Range::closed(0.0, 1000.0), fit Some(Fit::abs(2.0, 0.0, 300.0).step_biased(Step::Rel(0.22))),
             model Some(|p| p.coupling_damping), "replaces the flexible coupling damping";
     }
     /// Multipliers on the SuT, load L, load R inertias (1 = off).
     inertia_scale => inertia_scale: [f32; 3] = [1.0, 1.0, 1.0],
         proof proof("sut", 1.2, 1.5, TP14, (1.0, 0.0)), Whole;
     {
-        sut([0]): "-", SCALE, fit FACTOR, model None, "multiplies the SuT-side inertia (1 = off)";
-        load_l([1]): "-", SCALE, fit FACTOR, model None, "multiplies the load L inertia (1 = off)";
-        load_r([2]): "-", SCALE, fit FACTOR, model None, "multiplies the load R inertia (1 = off)";
+        sut([0]): "-", SCALE, fit Some(Fit::abs(0.05, 0.1, 5.0).step_biased(Step::Abs(0.067))), model None, "multiplies the SuT-side inertia (1 = off)";
+        load_l([1]): "-", SCALE, fit Some(Fit::abs(0.05, 0.1, 5.0).step_biased(Step::Abs(0.065))), model None, "multiplies the load L inertia (1 = off)";
+        load_r([2]): "-", SCALE, fit Some(Fit::abs(0.05, 0.1, 5.0).step_biased(Step::Abs(0.044))), model None, "multiplies the load R inertia (1 = off)";
     }
     /// [ohm] replaces the connector resistance when set.
     connector_resistance => connector_resistance: Option<f32> = None,
         proof proof("resistance_ohm", 0.025, 0.04, TP11, (0.79, 1.0)), Whole;
     {
-        resistance_ohm(): "ohm", Range::closed(0.0, 1.0), fit Some(Fit::abs(0.005, 0.0, 0.3)),
+        resistance_ohm(): "ohm", Range::closed(0.0, 1.0), fit Some(Fit::abs(0.005, 0.0, 0.3).step_biased(Step::Rel(1.3e-3))),
             model Some(|p| p.connector_resistance), "replaces the busbar-to-inverter connector resistance";
     }
     /// [ohm] DPU source resistance: the busbars sag with current.
     supply_resistance => supply_resistance: f32 = 0.0,
         proof proof("resistance_ohm", 0.005, 0.02, TP11, (0.79, 1.0)), Whole;
     {
-        resistance_ohm(): "ohm", Range::half_open(0.0, 1.0), fit Some(Fit::abs(0.005, 0.0, 0.5)),
+        resistance_ohm(): "ohm", Range::half_open(0.0, 1.0), fit Some(Fit::abs(0.005, 0.0, 0.5).step_biased(Step::Rel(3.3e-3))),
             model None, "DPU source resistance (0 = off)";
     }
     /// [-] fraction of regenerated power additionally lost (0 = off).
     regen_efficiency => regen_loss: f32 = 0.0,
         proof proof("extra_loss", 0.1, 0.3, TP07, (1.0, 1.0)), Whole;
     {
-        extra_loss(): "-", Range::half_open(0.0, 1.0), fit Some(Fit::abs(0.05, 0.0, 0.9)), model None,
+        extra_loss(): "-", Range::half_open(0.0, 1.0), fit Some(Fit::abs(0.05, 0.0, 0.9).step_biased(Step::Abs(1.4e-3))), model None,
             "fraction of regenerated power additionally lost (0 = off)";
     }
     /// [-] multiplies each measured channel at its sensor (1 = off).

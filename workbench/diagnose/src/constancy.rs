@@ -189,6 +189,7 @@ mod tests {
                 lower: 0.0,
                 upper: 10.0,
                 unit: "-",
+                step_bias: model_core::effects::Step::Abs(0.0),
             };
             let sd = 0.01 / x.iter().map(|v| v * v).sum::<f64>().sqrt();
             let resid = vec![(0..n).map(|t| p.meas[0][t] - f64::from(fit.sim[0][t])).collect()];

@@ -503,6 +503,8 @@ pub(super) struct SetFit {
     pub fit: Fit,
     /// σ of each parameter.
     pub std: Vec<f64>,
+    /// Each parameter's value before the fit (neutral or current).
+    pub starts: Vec<f64>,
     /// A member's parameter that drifts over the run ([`Candidate::drift`]).
     pub drift: Option<Drift>,
 }
@@ -533,8 +535,21 @@ fn joint_fit(
         specs: sp.into_iter().cloned().collect(),
         fit,
         std,
+        starts,
         drift,
     })
+}
+
+impl SetFit {
+    /// Whether the joint fit supports member `effect`: some parameter of it moved from
+    /// its start by more than 2 σ, as a single effect must to be significant. A member
+    /// the others leave at its start (within its uncertainty) has no evidence of its own.
+    pub fn supports(&self, effect: &str) -> bool {
+        self.specs
+            .iter()
+            .zip(self.fit.values.iter().zip(self.std.iter().zip(&self.starts)))
+            .any(|(sp, (v, (sd, s0)))| sp.cause == effect && super::refit::moved(*v, *s0, *sd, sp))
+    }
 }
 
 /// Refit the candidates `list` on the simulator, with their uncertainty, and write the
@@ -570,4 +585,35 @@ fn confirm_leaders(
         fits.push((ci, fit));
     }
     fits
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A member the joint fit moves by 3 σ is supported; one it leaves within 1 σ of its
+    /// start is not, nor one whose σ is undetermined.
+    #[test]
+    fn a_set_supports_only_members_it_moves() {
+        let lib = super::super::library::library(&Params::default());
+        let spec = |e: &str| lib.iter().find(|s| s.effect == e).cloned().expect("a library effect");
+        let (a, b, c) = (spec("supply_resistance"), spec("regen_efficiency"), spec("controller_delay"));
+        let set = SetFit {
+            effects: vec![a.cause, b.cause, c.cause],
+            specs: vec![a, b, c],
+            fit: Fit {
+                values: vec![0.013, 0.05, 0.08],
+                sim: Vec::new(),
+                jac: Vec::new(),
+                energy: 0.0,
+                profile: Vec::new(),
+            },
+            std: vec![0.001, 0.05, f64::INFINITY],
+            starts: vec![0.010, 0.0, 0.0],
+            drift: None,
+        };
+        assert!(set.supports("supply_resistance"));
+        assert!(!set.supports("regen_efficiency"));
+        assert!(!set.supports("controller_delay"));
+    }
 }

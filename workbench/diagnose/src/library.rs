@@ -4,7 +4,7 @@
 //! effect's declaration in `model_core::effects` (its `Fit`), so there is no table here
 //! to keep in step with the model.
 
-use model_core::effects::{Cause, Effects, EFFECTS};
+use model_core::effects::{Cause, Effects, Step, EFFECTS};
 use model_core::Params;
 
 /// One fittable parameter.
@@ -27,6 +27,9 @@ pub struct ParamSpec {
     pub upper: f64,
     /// Unit, for reports.
     pub unit: &'static str,
+    /// How far the twin's step alone may move a fit of it
+    /// ([`model_core::effects::Fit::step_bias`]).
+    pub step_bias: Step,
 }
 
 impl ParamSpec {
@@ -74,6 +77,7 @@ pub fn library(p: &Params) -> Vec<ParamSpec> {
                 lower: fit.lower,
                 upper: fit.upper,
                 unit: d.unit,
+                step_bias: fit.step_bias,
             });
         }
     }

@@ -52,11 +52,10 @@ pub struct Run {
 }
 
 /// Make a run of `profile` with the library effects `truth` hidden in it, on the twin,
-/// with default bench noise. On the physics plant (`bench_run_with`) the same cases are
-/// found (15 of 15 at the test seeds), but the twin's 1 ms discretization biases four
-/// fits beyond their reported intervals (coupling stiffness 7 %, coupling damping 13 %,
-/// backlash 9 %, the unhidden accel_fwd rate by 5e-4): the uncertainty does not yet
-/// include model error. That is the realistic-data diagnosis issue's to fix.
+/// with default bench noise. On the physics plant (`bench_run_with`) the twin's 1 ms
+/// discretization biases some fits (coupling stiffness up to 6.6 %, damping 12 %): the
+/// reported uncertainty counts each parameter's declared step bias
+/// (`model_core::effects::Fit::step_bias`, measured by `examples/step_bias.rs`).
 pub fn bench_run(truth: &Effects, profile: (Builtin, f32, f32), seed: u64) -> Run {
     let fx = BenchEffects { library: *truth, ..BenchEffects::none() };
     bench_run_with(&fx, PlantKind::Twin, profile, seed)
@@ -64,6 +63,18 @@ pub fn bench_run(truth: &Effects, profile: (Builtin, f32, f32), seed: u64) -> Ru
 
 /// [`bench_run`] with any bench effects (bench-only physics, acquisition) on `plant`.
 pub fn bench_run_with(fx: &BenchEffects, plant: PlantKind, profile: (Builtin, f32, f32), seed: u64) -> Run {
+    plant_run(fx, plant, profile, Some(NoiseModel::default()), seed)
+}
+
+/// [`bench_run_with`] with the acquisition's noise `noise` (`None`: the plant's exact
+/// outputs, as for measuring what the twin's step alone does to a fit).
+pub fn plant_run(
+    fx: &BenchEffects,
+    plant: PlantKind,
+    profile: (Builtin, f32, f32),
+    noise: Option<NoiseModel>,
+    seed: u64,
+) -> Run {
     let opts = ModelOptions::default();
     let p = Profile::builtin(profile.0, profile.1, profile.2).expect("built-in profile");
     let run = BenchRun {
@@ -75,7 +86,7 @@ pub fn bench_run_with(fx: &BenchEffects, plant: PlantKind, profile: (Builtin, f3
         supply_v: opts.supply_v,
         dt_us: 1000,
         effects: fx,
-        chain: ChainOptions { noise: Some(NoiseModel::default()), seed, miscount: false },
+        chain: ChainOptions { noise, seed, miscount: false },
         pulses: false,
     };
     let m = run.measure("bench".as_ref()).expect("a valid hidden-effect case");

@@ -243,6 +243,12 @@ fn profile_scan(pb: &Problem, s0: &ParamSpec, fit: &mut Fit) {
     fit.profile = prof;
 }
 
+/// Whether a fitted value `v` of `s` moved from its `start` by more than 2 σ (never with
+/// an undetermined σ): what makes a refit significant.
+pub(super) fn moved(v: f64, start: f64, sd: f64, s: &ParamSpec) -> bool {
+    sd.is_finite() && (v - start).abs() > 2.0 * sd && (v - start).abs() > 1e-6 * s.delta
+}
+
 /// Write a refit into its candidate: values and their uncertainty `std`, the reduction
 /// measured on the simulator, per-channel and per-region errors. Significant: some
 /// parameter moved from its start by more than 2 σ (never with an undetermined σ).
@@ -254,9 +260,7 @@ pub(super) fn confirm(cand: &mut Candidate, fit: &Fit, std: &[f64], specs: &[&Pa
         fp.value = v;
         fp.std = *sd;
         fp.ci95 = ((v - 1.96 * sd).max(s.lower), (v + 1.96 * sd).min(s.upper));
-        if sd.is_finite() && (v - fp.start).abs() > 2.0 * sd && (v - fp.start).abs() > 1e-6 * s.delta {
-            cand.significant = true;
-        }
+        cand.significant |= moved(v, fp.start, *sd, s);
     }
     for (c, ch) in cand.channels.iter_mut().enumerate() {
         let s: Vec<f64> = fit.sim[c].iter().map(|v| f64::from(*v)).collect();
@@ -313,6 +317,7 @@ mod tests {
             lower: 0.0,
             upper,
             unit: "-",
+            step_bias: model_core::effects::Step::Abs(0.0),
         }
     }
 

@@ -30,7 +30,8 @@ use simrod_numerics::stats::moving_mean;
 /// How well a refit pins its parameters down, and whether they are constants.
 pub(super) struct Spread {
     /// What is reported: the larger of the sandwich and the fold jackknife, widened for
-    /// one parameter by its profile, never below the parameter's quantisation.
+    /// one parameter by its profile, with the parameter's quantisation and the twin's
+    /// step bias added.
     pub std: Vec<f64>,
     /// A parameter whose value walks over the run ([`drift`], on the sandwich's σ: what
     /// noise alone moves the estimates by).
@@ -39,8 +40,8 @@ pub(super) struct Spread {
 
 /// Standard deviations of a refit's parameters (started from `starts`): the sandwich
 /// covariance (noise level over 1 s, correlations up to 2 s), widened for one parameter
-/// by its profile, and never below the quantisation of a parameter the model realises in
-/// steps; and the drift test on the same residual.
+/// by its profile, with the quantisation of a parameter the model realises in steps and
+/// the declared bias of the twin's step added; and the drift test on the same residual.
 pub(super) fn parameter_std(
     p: &Prepared,
     fit: &Fit,
@@ -69,10 +70,12 @@ pub(super) fn parameter_std(
         widen_by_profile(&p.weights, fit, s0, sd);
     }
     // A parameter the model can only realise in steps (a delay in whole time steps) is
-    // uncertain by at least its quantisation.
-    for (sd, sp) in std.iter_mut().zip(specs) {
-        let q = sp.quantum(dt);
-        *sd = (*sd * *sd + q * q / 12.0).sqrt();
+    // uncertain by at least its quantisation; one the twin's step biases, by that bias.
+    // Both are bounded errors of unknown sign: uniform over ±half the quantum and over
+    // ±the bias (σ² = a²/3 for a half-width a).
+    for ((sd, sp), v) in std.iter_mut().zip(specs).zip(&fit.values) {
+        let (q, b) = (sp.quantum(dt), sp.step_bias.at(*v));
+        *sd = (*sd * *sd + q * q / 12.0 + b * b / 3.0).sqrt();
     }
     Spread { std, drift }
 }

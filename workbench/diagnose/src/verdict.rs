@@ -373,9 +373,10 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
     Verdict { kind, sentence, lead, unexplained, proposed, named: lead.into_iter().collect(), removed }
 }
 
-/// The verdict on the selected set, when it has two or more effects and its joint
-/// refit removes materially more than the best single effect's: the set is named,
-/// every member with its parameters, so the greedy line and the verdict agree.
+/// The verdict on the selected set, when it has two or more effects, its joint refit
+/// removes materially more than the best single effect's and moves every member
+/// significantly ([`SetFit::supports`]): the set is named, every member with its
+/// parameters, so the greedy line and the verdict agree.
 fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     let set = ev.set?;
     let (p, o) = (ev.p, ev.o);
@@ -387,6 +388,7 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     // A sensor member that leaves its channel above the noise only absorbs error there.
     let member = |e: &&'static str| ev.cands.iter().find(|c| c.effect == *e);
     if set.effects.iter().filter_map(member).any(|c| ev.absorbs(c, &set.fit.sim) || c.drift.is_some())
+        || set.effects.iter().any(|e| !set.supports(e))
         || set.drift.is_some()
         || ev.worse(&set.fit.sim).is_some()
     {
