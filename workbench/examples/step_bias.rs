@@ -71,7 +71,11 @@ fn main() {
                     let spread = 0.5
                         * (vs.iter().copied().fold(f64::MIN, f64::max)
                             - vs.iter().copied().fold(f64::MAX, f64::min));
-                    let e = [(v - t).abs(), ((v - t) / t).abs(), (v - t).abs() / declared(id, param, t)];
+                    let e = [
+                        (v - t).abs(),
+                        ((v - t) / t).abs(),
+                        (v - t).abs() / declared_step_bias(id, param, t).unwrap_or(0.0),
+                    ];
                     println!(
                         "{id:22} {label:12} {param:22} {t:>11.5} {v:>11.5} {:>11.3e} {:>8.3}% {spread:>11.3e} {:>9.2}",
                         v - t,
@@ -129,12 +133,4 @@ fn fitted(run: &Run, truth: &Effects, id: &str, hidden: &str) -> Vec<(&'static s
             (fp.name, t, fit)
         })
         .collect()
-}
-
-/// The declared step bias of `id`.`param` at `value`.
-fn declared(id: &str, param: &str, value: f64) -> f64 {
-    model_core::effects::effect(id)
-        .and_then(|e| e.param(param))
-        .and_then(|p| p.fit)
-        .map_or(0.0, |f| f.step_bias.at(value))
 }

@@ -234,9 +234,9 @@ fn a_campaign_resolves_what_one_run_confounds() {
     let half_width = |j: &Value| -> f64 {
         let lead = &j["ranking"][0];
         assert_eq!(lead["effect"], "differential_friction", "{}", j["verdict"]);
-        let fit = model_core::effects::effect("differential_friction").and_then(|e| e.param("coulomb_nm"));
         let v = lead["params"]["coulomb_nm"].as_f64().unwrap();
-        let bias = fit.and_then(|p| p.fit).unwrap().step_bias.at(v);
+        let bias =
+            workbench::diagnose::proof::declared_step_bias("differential_friction", "coulomb_nm", v).unwrap();
         let sd = lead["uncertainty"]["coulomb_nm"].as_f64().unwrap();
         1.96 * (sd * sd - bias * bias / 3.0).sqrt()
     };

@@ -98,6 +98,13 @@ pub fn plant_run(
     Run { meas, twin: RecordedTwin::new(twin, channels) }
 }
 
+/// The twin's declared step bias of `id`.`param` at `value`
+/// ([`model_core::effects::Fit::step_bias`]); `None` for a parameter the library does not fit.
+pub fn declared_step_bias(id: &str, param: &str, value: f64) -> Option<f64> {
+    let fit = model_core::effects::effect(id)?.param(param)?.fit?;
+    Some(fit.step_bias.at(value))
+}
+
 /// Diagnose a run blind (current model = the thesis model plus `base`).
 pub fn diagnose_run(run: &Run, base: &Effects) -> Result<Diagnosis, String> {
     let probe = BuiltinProbe::standard(ModelOptions::default(), fitted_channels());
