@@ -166,9 +166,10 @@ pub struct FittedParam {
     pub value: f64,
     /// Value before the fit (neutral or current).
     pub start: f64,
-    /// Standard deviation (the larger of the sandwich's and the fold jackknife's,
-    /// `uncertainty`); `f64::INFINITY` when the run does not determine the parameter;
-    /// `NaN` when not refitted.
+    /// Standard deviation as reported (`uncertainty`: the larger of the sandwich's and the
+    /// fold jackknife's, widened by the Birge ratio of what the fit leaves, with the
+    /// bounded errors added); `f64::INFINITY` when the run does not determine the
+    /// parameter; `NaN` when not refitted.
     pub std: f64,
     /// 95 % interval (value ± 1.96 std, clipped to bounds; NaN when not refitted).
     pub ci95: (f64, f64),
@@ -373,6 +374,9 @@ fn stages(
         }
     }
     let ranking = rank(&cands);
+    let base_structure =
+        structure_in(&p, twin.channels(), &twin.resolution(), twin.dt_s() * p.stride as f64, &p.base_sim)
+            .is_some();
     let group = Leaders { cands: &cands, lin: &lin, fits: &fits, ranking: &ranking };
     let confounded = confounded_groups(&group, &s, o, &p.weights, probe);
     let ev = Evidence {
@@ -387,6 +391,7 @@ fn stages(
         set: set.as_ref(),
         ranking: &ranking,
         confounded: &confounded,
+        base_structure,
     };
     let (v, empirical) = tables(twin, &ev, conclude(&ev));
     let mut selected = selected;
@@ -501,8 +506,10 @@ pub(super) struct SetFit {
     /// Their parameters, effect by effect.
     pub specs: Vec<ParamSpec>,
     pub fit: Fit,
-    /// σ of each parameter.
+    /// σ of each parameter for the test whether it moved ([`Spread::std`]).
     pub std: Vec<f64>,
+    /// σ of each parameter as reported ([`Spread::reported`]).
+    pub reported: Vec<f64>,
     /// Each parameter's value before the fit (neutral or current).
     pub starts: Vec<f64>,
     /// A member's parameter that drifts over the run ([`Candidate::drift`]).
@@ -529,12 +536,13 @@ fn joint_fit(
     let sp: Vec<&ParamSpec> = ix.iter().map(|&i| &s.specs[i]).collect();
     let fit = refit(twin, p, o, &sp, &start)?;
     let starts: Vec<f64> = ix.iter().map(|&i| s.starts[i]).collect();
-    let Spread { std, drift } = parameter_std(p, &fit, &sp, &starts, twin.dt_s());
+    let Spread { std, reported, drift } = parameter_std(p, &fit, &sp, &starts, twin.dt_s());
     Some(SetFit {
         effects: groups.iter().map(|&g| s.groups[g].0).collect(),
         specs: sp.into_iter().cloned().collect(),
         fit,
         std,
+        reported,
         starts,
         drift,
     })
@@ -580,8 +588,8 @@ fn confirm_leaders(
         .collect();
     let mut fits = Vec::with_capacity(done.len());
     for (ci, fit, spread) in done {
+        confirm(&mut cands[ci], &fit, &spread, &specs(ci), p);
         cands[ci].drift = spread.drift;
-        confirm(&mut cands[ci], &fit, &spread.std, &specs(ci), p);
         fits.push((ci, fit));
     }
     fits
@@ -609,6 +617,7 @@ mod tests {
                 profile: Vec::new(),
             },
             std: vec![0.001, 0.05, f64::INFINITY],
+            reported: vec![0.001, 0.05, f64::INFINITY],
             starts: vec![0.010, 0.0, 0.0],
             drift: None,
         };

@@ -10,6 +10,7 @@ use super::library::{with_values, ParamSpec};
 use super::linalg::solve_spd;
 use super::preparation::{energy, region_errors, rmse, run_all, Prepared};
 use super::sensitivities::check_shape;
+use super::uncertainty::Spread;
 
 /// Most Levenberg–Marquardt iterations (each: one Jacobian, up to [`DAMPING_TRIES`] steps).
 const MAX_ITERATIONS: usize = 8;
@@ -249,17 +250,19 @@ pub(super) fn moved(v: f64, start: f64, sd: f64, s: &ParamSpec) -> bool {
     sd.is_finite() && (v - start).abs() > 2.0 * sd && (v - start).abs() > 1e-6 * s.delta
 }
 
-/// Write a refit into its candidate: values and their uncertainty `std`, the reduction
-/// measured on the simulator, per-channel and per-region errors. Significant: some
-/// parameter moved from its start by more than 2 σ (never with an undetermined σ).
-pub(super) fn confirm(cand: &mut Candidate, fit: &Fit, std: &[f64], specs: &[&ParamSpec], p: &Prepared) {
+/// Write a refit into its candidate: values and their uncertainty (`spread`'s reported
+/// σ), the reduction measured on the simulator, per-channel and per-region errors.
+/// Significant: some parameter moved from its start by more than 2 of `spread`'s σ for
+/// that test (never with an undetermined σ).
+pub(super) fn confirm(cand: &mut Candidate, fit: &Fit, spread: &Spread, specs: &[&ParamSpec], p: &Prepared) {
     cand.confirmed_reduction = Some(((p.e0 - fit.energy) / p.excess).clamp(0.0, 1.0));
     cand.energy_after = Some(fit.energy);
     cand.significant = false;
-    for ((fp, &v), (sd, s)) in cand.params.iter_mut().zip(&fit.values).zip(std.iter().zip(specs)) {
+    let sds = spread.std.iter().zip(&spread.reported);
+    for ((fp, &v), ((sd, shown), s)) in cand.params.iter_mut().zip(&fit.values).zip(sds.zip(specs)) {
         fp.value = v;
-        fp.std = *sd;
-        fp.ci95 = ((v - 1.96 * sd).max(s.lower), (v + 1.96 * sd).min(s.upper));
+        fp.std = *shown;
+        fp.ci95 = ((v - 1.96 * shown).max(s.lower), (v + 1.96 * shown).min(s.upper));
         cand.significant |= moved(v, fp.start, *sd, s);
     }
     for (c, ch) in cand.channels.iter_mut().enumerate() {
@@ -413,8 +416,15 @@ mod tests {
             energy_after: None,
         };
         for (sd, significant) in [(f64::INFINITY, false), (f64::NAN, false), (0.1, true), (3.0, false)] {
-            confirm(&mut cand, &fit, &[sd], &[&sa], &p);
+            let spread = Spread { std: vec![sd], reported: vec![sd], drift: None };
+            confirm(&mut cand, &fit, &spread, &[&sa], &p);
             assert_eq!(cand.significant, significant, "σ = {sd}");
         }
+        // Significance is judged on the test's σ; the reported one (widened for what the
+        // fit leaves) is what the parameter shows.
+        let spread = Spread { std: vec![0.1], reported: vec![3.0], drift: None };
+        confirm(&mut cand, &fit, &spread, &[&sa], &p);
+        assert!(cand.significant);
+        assert_eq!(cand.params[0].std, 3.0);
     }
 }

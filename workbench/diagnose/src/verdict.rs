@@ -50,6 +50,9 @@ pub(super) struct Evidence<'a> {
     pub set: Option<&'a SetFit>,
     pub ranking: &'a [Candidate],
     pub confounded: &'a [ConfoundedGroup],
+    /// Whether the current model's residual has structure flagged
+    /// ([`Evidence::structure_left`] of the base).
+    pub base_structure: bool,
 }
 
 /// The verdict and what goes with it.
@@ -99,7 +102,8 @@ impl Evidence<'_> {
             return Some(format!("its {} drifts over the run", d.param));
         }
         let Some(f) = self.after(c.effect) else { return Some("it was not refitted".into()) };
-        if self.p.e0 - f.energy < self.o.min_reduction_of_noise * self.p.e_noise {
+        if self.p.e0 - f.energy < self.o.min_reduction_of_noise * self.p.e_noise && !self.clears_structure(c)
+        {
             return Some("its refit removes less than a chance fit of the noise".into());
         }
         if self.absorbs(c, &f.sim) {
@@ -109,6 +113,14 @@ impl Evidence<'_> {
             ));
         }
         None
+    }
+
+    /// Whether `c`'s refit leaves no structure where the current model's residual has
+    /// some ([`Evidence::base_structure`]): a located error removed whole is evidence
+    /// however little of the whole run's noise energy it is (a regenerating loss on one
+    /// current over 2 s), and chance fits of noise do not remove a flagged window.
+    fn clears_structure(&self, c: &Candidate) -> bool {
+        self.base_structure && c.significant && c.leaves_structure == Some(false)
     }
 
     /// The best significant candidate refused only because it makes a channel worse
@@ -446,7 +458,7 @@ fn describe_set(set: &SetFit, cands: &[Candidate]) -> String {
             let params: Vec<String> = set
                 .specs
                 .iter()
-                .zip(set.fit.values.iter().zip(&set.std))
+                .zip(set.fit.values.iter().zip(&set.reported))
                 .filter(|(sp, _)| sp.cause == *e)
                 .map(|(sp, (v, sd))| format!("{} = {:.4} ± {:.4} {}", sp.param, v, 1.96 * sd, sp.unit))
                 .collect();
@@ -624,6 +636,7 @@ pub(super) fn table_beats_library(ev: &Evidence, v: &Verdict, table_heldout: f64
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::preparation::tests::gaussian;
 
     #[test]
     fn worst_window_finds_the_burst() {
@@ -666,7 +679,6 @@ mod tests {
     /// is not proposed, and the verdict says why; the same fit without the harm counts.
     #[test]
     fn a_refused_best_is_named_with_the_reason() {
-        use super::super::sensitivities::Sensitivities;
         let n = 400;
         let channels = [Channel::VDc, Channel::IDc];
         let noise = vec![("V_DC", 0.01), ("I_DC", 0.1)];
@@ -677,23 +689,7 @@ mod tests {
         };
         let p = Prepared::single_run(meas, noise, sim(0.0, 0.1));
         let o = Options::default();
-        let spec = super::super::library::library(&o.params)
-            .into_iter()
-            .find(|sp| sp.cause == "supply_resistance")
-            .expect("supply_resistance is in the library");
-        let s = Sensitivities {
-            specs: vec![spec],
-            starts: Vec::new(),
-            steps: Vec::new(),
-            sens: Vec::new(),
-            g: Vec::new(),
-            b: Vec::new(),
-            gc: Vec::new(),
-            bc: Vec::new(),
-            groups: vec![("supply_resistance", vec![0])],
-            gf: Vec::new(),
-            bf: Vec::new(),
-        };
+        let s = supply_resistance_only(&o);
         let judge = |i_after: f64| {
             let after = sim(0.2, i_after);
             let energy = channel_energies(&p, &after).iter().sum();
@@ -724,6 +720,7 @@ mod tests {
                 set: None,
                 ranking: &cands,
                 confounded: &[],
+                base_structure: false,
             };
             (ev.refusal(&cands[0]), conclude(&ev))
         };
@@ -735,5 +732,94 @@ mod tests {
         let (why, v) = judge(0.1);
         assert_eq!(why, None);
         assert_eq!(v.lead, Some("supply_resistance"), "{}", v.sentence);
+    }
+
+    /// Sensitivities holding the supply resistance alone (what the verdict reads of them).
+    fn supply_resistance_only(o: &Options) -> super::super::sensitivities::Sensitivities {
+        let spec = super::super::library::library(&o.params)
+            .into_iter()
+            .find(|sp| sp.cause == "supply_resistance")
+            .expect("supply_resistance is in the library");
+        super::super::sensitivities::Sensitivities {
+            specs: vec![spec],
+            starts: Vec::new(),
+            steps: Vec::new(),
+            sens: Vec::new(),
+            g: Vec::new(),
+            b: Vec::new(),
+            gc: Vec::new(),
+            bc: Vec::new(),
+            groups: vec![("supply_resistance", vec![0])],
+            gf: Vec::new(),
+            bf: Vec::new(),
+        }
+    }
+
+    /// A cause whose error is confined to 2 s of a 60 s run (0.6 σ on one channel) removes
+    /// under 1 % of the run's noise energy, less than the chance-fit bar; but the residual
+    /// test flags that window and the cause's refit leaves nothing flagged, so it is the
+    /// lead. Without the flagged window (nothing located) the same refit is refused.
+    #[test]
+    fn a_located_error_removed_whole_counts_however_small() {
+        let (n, dt) = (6_000, 0.01);
+        let channels = [Channel::VDc, Channel::IDc];
+        let noise = vec![("V_DC", 0.01), ("I_DC", 0.1)];
+        let (nv, ni) = (gaussian(61, n), gaussian(62, n));
+        let truth = |k: usize| 24.0 + if (2_000..2_200).contains(&k) { -0.006 } else { 0.0 };
+        let meas: Vec<Vec<f64>> = vec![
+            (0..n).map(|k| truth(k) + 0.01 * nv[k]).collect(),
+            (0..n).map(|k| 100.0 + 0.1 * ni[k]).collect(),
+        ];
+        let sim = |dip: bool| -> Vec<Vec<f32>> {
+            let v = |k: usize| if dip { truth(k) } else { 24.0 };
+            vec![(0..n).map(|k| v(k) as f32).collect(), vec![100.0f32; n]]
+        };
+        let p = Prepared::single_run(meas, noise, sim(false));
+        let o = Options::default();
+        let s = supply_resistance_only(&o);
+        let res = [0.0; 2];
+        let after = sim(true);
+        let base_flagged = structure_in(&p, &channels, &res, dt, &p.base_sim).is_some();
+        let left = structure_in(&p, &channels, &res, dt, &after).is_some();
+        assert!(base_flagged && !left, "the window is flagged before the refit and not after");
+        let energy: f64 = channel_energies(&p, &after).iter().sum();
+        assert!(p.e0 - energy < o.min_reduction_of_noise * p.e_noise, "under the chance-fit bar");
+        let fit = Fit { values: vec![0.012], sim: after, jac: Vec::new(), energy, profile: Vec::new() };
+        let cand = Candidate {
+            effect: "supply_resistance",
+            params: Vec::new(),
+            predicted_reduction: 0.9,
+            confirmed_reduction: Some(((p.e0 - energy) / p.excess).clamp(0.0, 1.0)),
+            energy_after: Some(energy),
+            significant: true,
+            channels: Vec::new(),
+            regions: Vec::new(),
+            moves: vec!["V_DC", "I_DC"],
+            leaves_structure: Some(left),
+            drift: None,
+        };
+        let (cands, fits) = (vec![cand], vec![(0, fit)]);
+        let judge = |base_structure: bool| {
+            let ev = Evidence {
+                p: &p,
+                s: &s,
+                o: &o,
+                channels: &channels,
+                resolution: res.to_vec(),
+                dt,
+                cands: &cands,
+                fits: &fits,
+                set: None,
+                ranking: &cands,
+                confounded: &[],
+                base_structure,
+            };
+            (ev.refusal(&cands[0]), conclude(&ev))
+        };
+        let (why, v) = judge(true);
+        assert_eq!(why, None);
+        assert_eq!((v.kind, v.lead), (VerdictKind::Missing, Some("supply_resistance")), "{}", v.sentence);
+        let (why, _) = judge(false);
+        assert_eq!(why.as_deref(), Some("its refit removes less than a chance fit of the noise"));
     }
 }
