@@ -449,6 +449,28 @@ mod tests {
         assert_eq!(sandwich_diagonal(&g, &[-1.0, 0.0, 0.0, 1.0], 2)[0], f64::INFINITY);
     }
 
+    /// A one-parameter least-squares fit `y ≈ est·x` with noise `sn`, its sandwich and
+    /// fold-jackknife σ (noise level over 200 samples, correlations up to 400) and the
+    /// weighted energy of its residual.
+    struct OneFit {
+        est: f64,
+        sandwich: f64,
+        jackknife: f64,
+        energy: f64,
+    }
+
+    fn fit_one(x: &[f64], y: &[f64], sn: f64, folds: &[usize]) -> OneFit {
+        let est = dot(x, y) / dot(x, x);
+        let r: Vec<f64> = y.iter().zip(x).map(|(v, xi)| v - est * xi).collect();
+        let w = 1.0 / (sn * sn);
+        let jac = vec![vec![x.to_vec()]];
+        let sandwich = sandwich_std(&[w], std::slice::from_ref(&r), &jac, 200, 400)[0];
+        let jackknife =
+            fold_jackknife_std(&[w], std::slice::from_ref(&r), &jac, folds).expect("five folds")[0];
+        let energy = r.iter().map(|v| w * v * v).sum();
+        OneFit { est, sandwich, jackknife, energy }
+    }
+
     /// One gain `a` fitted to `y = a x + noise` over five contiguous folds, where in one
     /// random fold (a region where a map is off) the data follow `(a + β) x`: the fit is
     /// biased by about β/5, far beyond the noise. The sandwich, which takes the residual
@@ -473,12 +495,7 @@ mod tests {
                     g * x[t] + sn * noise[t]
                 })
                 .collect();
-            let est = dot(&x, &y) / dot(&x, &x);
-            let r: Vec<f64> = y.iter().zip(&x).map(|(v, xi)| v - est * xi).collect();
-            let w = 1.0 / (sn * sn);
-            let jac = vec![vec![x.clone()]];
-            let s0 = sandwich_std(&[w], std::slice::from_ref(&r), &jac, 200, 400)[0];
-            let jk = fold_jackknife_std(&[w], &[r], &jac, &folds).expect("five folds")[0];
+            let OneFit { est, sandwich: s0, jackknife: jk, .. } = fit_one(&x, &y, sn, &folds);
             let sd = s0.max(jk);
             sand[biased] += usize::from((est - a).abs() <= 1.96 * s0);
             both[biased] += usize::from((est - a).abs() <= 1.96 * sd);
@@ -515,15 +532,9 @@ mod tests {
             let y: Vec<f64> = (0..m)
                 .map(|t| a * x[t] + gamma * (3.0 * std::f64::consts::PI * op[t]).cos() + sn * noise[t])
                 .collect();
-            let est = dot(&x, &y) / dot(&x, &x);
-            let r: Vec<f64> = y.iter().zip(&x).map(|(v, xi)| v - est * xi).collect();
-            let w = 1.0 / (sn * sn);
-            let jac = vec![vec![x.clone()]];
-            let s0 = sandwich_std(&[w], std::slice::from_ref(&r), &jac, 200, 400)[0];
-            let jk = fold_jackknife_std(&[w], std::slice::from_ref(&r), &jac, &folds).expect("five folds")[0];
-            let energy: f64 = r.iter().map(|v| w * v * v).sum();
+            let OneFit { est, sandwich, jackknife, energy } = fit_one(&x, &y, sn, &folds);
             let k = misfit_factor(energy, m as f64);
-            let sd = s0.max(jk);
+            let sd = sandwich.max(jackknife);
             plain[wrong] += usize::from((est - a).abs() <= 1.96 * sd);
             wide[wrong] += usize::from((est - a).abs() <= 1.96 * sd * k);
             factor[wrong] += k;

@@ -694,19 +694,7 @@ mod tests {
             let after = sim(0.2, i_after);
             let energy = channel_energies(&p, &after).iter().sum();
             let fit = Fit { values: vec![0.01], sim: after, jac: Vec::new(), energy, profile: Vec::new() };
-            let cand = Candidate {
-                effect: "supply_resistance",
-                params: Vec::new(),
-                predicted_reduction: 0.9,
-                confirmed_reduction: Some(((p.e0 - energy) / p.excess).clamp(0.0, 1.0)),
-                energy_after: Some(energy),
-                significant: true,
-                channels: Vec::new(),
-                regions: Vec::new(),
-                moves: vec!["V_DC", "I_DC"],
-                leaves_structure: Some(false),
-                drift: None,
-            };
+            let cand = supply_candidate(&p, energy, false);
             let (cands, fits) = (vec![cand], vec![(0, fit)]);
             let ev = Evidence {
                 p: &p,
@@ -755,6 +743,24 @@ mod tests {
         }
     }
 
+    /// A significant supply-resistance candidate whose refit left `energy`, and structure
+    /// when `leaves_structure`.
+    fn supply_candidate(p: &Prepared, energy: f64, leaves_structure: bool) -> Candidate {
+        Candidate {
+            effect: "supply_resistance",
+            params: Vec::new(),
+            predicted_reduction: 0.9,
+            confirmed_reduction: Some(((p.e0 - energy) / p.excess).clamp(0.0, 1.0)),
+            energy_after: Some(energy),
+            significant: true,
+            channels: Vec::new(),
+            regions: Vec::new(),
+            moves: vec!["V_DC", "I_DC"],
+            leaves_structure: Some(leaves_structure),
+            drift: None,
+        }
+    }
+
     /// A cause whose error is confined to 2 s of a 60 s run (0.6 σ on one channel) removes
     /// under 1 % of the run's noise energy, less than the chance-fit bar; but the residual
     /// test flags that window and the cause's refit leaves nothing flagged, so it is the
@@ -785,19 +791,7 @@ mod tests {
         let energy: f64 = channel_energies(&p, &after).iter().sum();
         assert!(p.e0 - energy < o.min_reduction_of_noise * p.e_noise, "under the chance-fit bar");
         let fit = Fit { values: vec![0.012], sim: after, jac: Vec::new(), energy, profile: Vec::new() };
-        let cand = Candidate {
-            effect: "supply_resistance",
-            params: Vec::new(),
-            predicted_reduction: 0.9,
-            confirmed_reduction: Some(((p.e0 - energy) / p.excess).clamp(0.0, 1.0)),
-            energy_after: Some(energy),
-            significant: true,
-            channels: Vec::new(),
-            regions: Vec::new(),
-            moves: vec!["V_DC", "I_DC"],
-            leaves_structure: Some(left),
-            drift: None,
-        };
+        let cand = supply_candidate(&p, energy, left);
         let (cands, fits) = (vec![cand], vec![(0, fit)]);
         let judge = |base_structure: bool| {
             let ev = Evidence {
