@@ -366,17 +366,16 @@ fn stages(
         || confirm_leaders(twin, &p, &s, o, &leaders, &mut cands),
         || joint_fit(twin, &p, &s, o, &selected),
     );
+    let resolution = twin.resolution();
+    let structure =
+        |sim: &[Vec<f32>]| structure_in(&p, twin.channels(), &resolution, twin.dt_s() * p.stride as f64, sim);
     for (ci, f) in &fits {
         if let Some(c) = cands.get_mut(*ci) {
-            let st =
-                structure_in(&p, twin.channels(), &twin.resolution(), twin.dt_s() * p.stride as f64, &f.sim);
-            c.leaves_structure = Some(st.is_some());
+            c.leaves_structure = Some(structure(&f.sim).is_some());
         }
     }
     let ranking = rank(&cands);
-    let base_structure =
-        structure_in(&p, twin.channels(), &twin.resolution(), twin.dt_s() * p.stride as f64, &p.base_sim)
-            .is_some();
+    let base_structure = structure(&p.base_sim);
     let group = Leaders { cands: &cands, lin: &lin, fits: &fits, ranking: &ranking };
     let confounded = confounded_groups(&group, &s, o, &p.weights, probe);
     let ev = Evidence {
@@ -384,7 +383,7 @@ fn stages(
         s: &s,
         o,
         channels: twin.channels(),
-        resolution: twin.resolution(),
+        resolution,
         dt: twin.dt_s(),
         cands: &cands,
         fits: &fits,

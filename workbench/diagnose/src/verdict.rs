@@ -50,9 +50,9 @@ pub(super) struct Evidence<'a> {
     pub set: Option<&'a SetFit>,
     pub ranking: &'a [Candidate],
     pub confounded: &'a [ConfoundedGroup],
-    /// Whether the current model's residual has structure flagged
-    /// ([`Evidence::structure_left`] of the base).
-    pub base_structure: bool,
+    /// The structure flagged in the current model's residual
+    /// ([`Evidence::structure_left`] of the base), if any.
+    pub base_structure: Option<Structure>,
 }
 
 /// The verdict and what goes with it.
@@ -120,7 +120,7 @@ impl Evidence<'_> {
     /// however little of the whole run's noise energy it is (a regenerating loss on one
     /// current over 2 s), and chance fits of noise do not remove a flagged window.
     fn clears_structure(&self, c: &Candidate) -> bool {
-        self.base_structure && c.significant && c.leaves_structure == Some(false)
+        self.base_structure.is_some() && c.significant && c.leaves_structure == Some(false)
     }
 
     /// The best significant candidate refused only because it makes a channel worse
@@ -350,7 +350,7 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
             );
             (VerdictKind::Partial, text, Some(loc))
         }
-        _ if ev.p.excess_ratio <= o.noise_like_ratio => match ev.structure_left(&ev.p.base_sim) {
+        _ if ev.p.excess_ratio <= o.noise_like_ratio => match &ev.base_structure {
             None => (
                 VerdictKind::NothingMissing,
                 format!(
@@ -360,7 +360,7 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
                 ),
                 None,
             ),
-            Some(st) => (VerdictKind::Unexplained, local_structure(ev.p.excess_ratio, &st), Some(st.location())),
+            Some(st) => (VerdictKind::Unexplained, local_structure(ev.p.excess_ratio, st), Some(st.location())),
         },
         Some(l) if l.reduction() >= o.unexplained_fraction => {
             let loc = ev.locate_after(lead);
@@ -708,7 +708,7 @@ mod tests {
                 set: None,
                 ranking: &cands,
                 confounded: &[],
-                base_structure: false,
+                base_structure: None,
             };
             (ev.refusal(&cands[0]), conclude(&ev))
         };
@@ -785,15 +785,15 @@ mod tests {
         let s = supply_resistance_only(&o);
         let res = [0.0; 2];
         let after = sim(true);
-        let base_flagged = structure_in(&p, &channels, &res, dt, &p.base_sim).is_some();
+        let flagged = || structure_in(&p, &channels, &res, dt, &p.base_sim);
         let left = structure_in(&p, &channels, &res, dt, &after).is_some();
-        assert!(base_flagged && !left, "the window is flagged before the refit and not after");
+        assert!(flagged().is_some() && !left, "the window is flagged before the refit and not after");
         let energy: f64 = channel_energies(&p, &after).iter().sum();
         assert!(p.e0 - energy < o.min_reduction_of_noise * p.e_noise, "under the chance-fit bar");
         let fit = Fit { values: vec![0.012], sim: after, jac: Vec::new(), energy, profile: Vec::new() };
         let cand = supply_candidate(&p, energy, left);
         let (cands, fits) = (vec![cand], vec![(0, fit)]);
-        let judge = |base_structure: bool| {
+        let judge = |located: bool| {
             let ev = Evidence {
                 p: &p,
                 s: &s,
@@ -806,7 +806,7 @@ mod tests {
                 set: None,
                 ranking: &cands,
                 confounded: &[],
-                base_structure,
+                base_structure: if located { flagged() } else { None },
             };
             (ev.refusal(&cands[0]), conclude(&ev))
         };
