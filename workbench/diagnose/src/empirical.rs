@@ -235,6 +235,28 @@ fn values_mut<'a>(d: &'a mut ModelData, file: &str) -> Option<(&'a mut [f32], No
     })
 }
 
+/// The maps of [`MAPS`] (not the scalar parameters), each with whether its axis crosses
+/// zero where its value changes sign (friction: a shift of it is not a shape it has).
+pub(super) fn map_files() -> impl Iterator<Item = (&'static str, bool)> {
+    MAPS.iter().filter_map(|&(file, axis)| match axis {
+        Axis::Scalar => None,
+        Axis::One { signed } => Some((file, signed)),
+        _ => Some((file, false)),
+    })
+}
+
+/// A copy of `base` with every value of map `file` replaced by `f(value, peak)`, `peak`
+/// the map's largest absolute value; `None` when `base` has no such map.
+pub(super) fn reshaped(base: &ModelData, file: &str, f: impl Fn(f64, f64) -> f64) -> Option<ModelData> {
+    let mut d = base.clone();
+    let (v, _) = values_mut(&mut d, file)?;
+    let peak = v.iter().fold(0.0f64, |a, x| a.max(f64::from(x.abs())));
+    for x in v.iter_mut() {
+        *x = f(f64::from(*x), peak) as f32;
+    }
+    Some(d)
+}
+
 /// Grid axes of map `file` (`x`, and `y` for a 2-D map, else empty).
 fn grid<'a>(d: &'a ModelData, file: &str) -> Option<(&'a [f32], &'a [f32])> {
     if let Some((_, m)) = d.maps_1d().into_iter().find(|(f, _)| *f == file) {

@@ -13,6 +13,8 @@
 //!    its declared grid instead ([`scan`](super::scan)).
 //! 4. [`refit`](super::refit): Levenberg–Marquardt refit of the leaders on the real
 //!    simulator; the error it removes, measured, not predicted.
+//!    A refitted sensor gain or offset that one shape of a map mimics is marked
+//!    ([`alias`](super::alias)): the run cannot tell the sensor from a wrong map.
 //! 5. [`uncertainty`](super::uncertainty): a sandwich (HAC) covariance with a positive
 //!    semi-definite (Bartlett-tapered) noise correlation, widened to the spread of the
 //!    estimates with one held-out fold left out (fold jackknife).
@@ -27,6 +29,7 @@ use std::sync::Arc;
 use model_core::{Channel, Effects, Params, SetPoints};
 use simrod_io::datadir::ModelData;
 
+use super::alias::map_aliases;
 use super::confounding::{confounded_groups, Leaders};
 pub use super::constancy::Drift;
 use super::empirical::{correct, Empirical, Inputs as EmpiricalInputs};
@@ -235,6 +238,23 @@ pub struct Candidate {
     /// After its refit, a parameter whose value changes steadily over the run: not a
     /// constant effect but the average of a time-varying one.
     pub drift: Option<Drift>,
+    /// For a sensor gain or offset: the map whose one shape removes about as much of the
+    /// error ([`super::alias`]), when one does.
+    pub map_alias: Option<MapAlias>,
+}
+
+/// A map whose one shape does what a sensor cause does: the run cannot tell them apart.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct MapAlias {
+    /// The map's data file.
+    pub file: &'static str,
+    /// `scale` (every value times `1 + value`, for a gain) or `shift` (every value plus
+    /// `value` times the map's largest value, for an offset).
+    pub shape: &'static str,
+    /// The shape's best value.
+    pub value: f64,
+    /// The error it removes, as a share of what the sensor cause's refit removes.
+    pub share: f64,
 }
 
 /// Share of a candidate's weighted sensitivity a channel must carry to count as moved.
@@ -374,6 +394,7 @@ fn stages(
             c.leaves_structure = Some(structure(&f.sim).is_some());
         }
     }
+    map_aliases(twin, &p, &s, o, &mut cands);
     let ranking = rank(&cands);
     let base_structure = structure(&p.base_sim);
     let group = Leaders { cands: &cands, lin: &lin, fits: &fits, ranking: &ranking };

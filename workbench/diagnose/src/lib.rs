@@ -10,6 +10,7 @@ pub mod proof;
 pub mod twin;
 
 // The stages of `engine::diagnose`, in order.
+mod alias;
 mod confounding;
 mod constancy;
 mod locate;

@@ -413,6 +413,7 @@ mod tests {
             moves: Vec::new(),
             leaves_structure: None,
             drift: None,
+            map_alias: None,
             energy_after: None,
         };
         for (sd, significant) in [(f64::INFINITY, false), (f64::NAN, false), (0.1, true), (3.0, false)] {

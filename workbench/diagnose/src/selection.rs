@@ -80,6 +80,7 @@ pub(super) fn score_effects(
                 moves: moved_channels(s, channels, ix),
                 leaves_structure: None,
                 drift: None,
+                map_alias: None,
                 energy_after: None,
             };
             (cand, th)

@@ -5,7 +5,7 @@
 
 use model_core::{Channel, Effects};
 
-use super::engine::{Candidate, ConfoundedGroup, Location, Options, SetFit, VerdictKind};
+use super::engine::{Candidate, ConfoundedGroup, Location, MapAlias, Options, SetFit, VerdictKind};
 use super::library::{with_values, ParamSpec};
 use super::locate::{follows, region};
 use super::preparation::{channel_energies, worse_somewhere, Prepared};
@@ -94,9 +94,9 @@ impl Evidence<'_> {
 
     /// The refusals that no map correction beside the candidate can lift: its value
     /// drifts over the run ([`Candidate::drift`]), it was not refitted, its refit removed
-    /// less than `min_reduction_of_noise` of the noise energy, or it is a one-channel
-    /// cause that only absorbs part of what else is wrong on its channel
-    /// ([`Self::absorbs`]).
+    /// less than `min_reduction_of_noise` of the noise energy, one shape of a map does
+    /// what it does ([`Candidate::map_alias`]), or it is a one-channel cause that only
+    /// absorbs part of what else is wrong on its channel ([`Self::absorbs`]).
     fn refusal_but_worse(&self, c: &Candidate) -> Option<String> {
         if let Some(d) = &c.drift {
             return Some(format!("its {} drifts over the run", d.param));
@@ -105,6 +105,9 @@ impl Evidence<'_> {
         if self.p.e0 - f.energy < self.o.min_reduction_of_noise * self.p.e_noise && !self.clears_structure(c)
         {
             return Some("its refit removes less than a chance fit of the noise".into());
+        }
+        if let Some(a) = &c.map_alias {
+            return Some(alias_refusal(c, a));
         }
         if self.absorbs(c, &f.sim) {
             return Some(format!(
@@ -399,7 +402,11 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     }
     // A sensor member that leaves its channel above the noise only absorbs error there.
     let member = |e: &&'static str| ev.cands.iter().find(|c| c.effect == *e);
-    if set.effects.iter().filter_map(member).any(|c| ev.absorbs(c, &set.fit.sim) || c.drift.is_some())
+    if set
+        .effects
+        .iter()
+        .filter_map(member)
+        .any(|c| ev.absorbs(c, &set.fit.sim) || c.drift.is_some() || c.map_alias.is_some())
         || set.effects.iter().any(|e| !set.supports(e))
         || set.drift.is_some()
         || ev.worse(&set.fit.sim).is_some()
@@ -448,6 +455,19 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
         named: set.effects.clone(),
         removed,
     })
+}
+
+/// Why sensor cause `c` is not claimed when one shape of map `a` does what it does.
+fn alias_refusal(c: &Candidate, a: &MapAlias) -> String {
+    let what = match a.shape {
+        "scale" => format!("scaling {} by {:+.1} %", a.file, 100.0 * a.value),
+        _ => format!("shifting {} by {:+.1} % of its largest value", a.file, 100.0 * a.value),
+    };
+    format!(
+        "{what} removes {:.0} % as much: a wrong map and a miscalibrated sensor look alike on {}",
+        100.0 * a.share,
+        c.moves.first().copied().unwrap_or("its channel")
+    )
 }
 
 /// `A (p = v ± h unit, …) [kind] + B (…) [kind]`.
@@ -665,6 +685,7 @@ mod tests {
             moves: vec!["SuTMotorEnc"],
             leaves_structure: Some(false),
             drift: None,
+            map_alias: None,
         };
         let names = |r: Vec<Candidate>| r.iter().map(|c| c.effect).collect::<Vec<_>>();
         let (lag, delay) =
@@ -758,6 +779,7 @@ mod tests {
             moves: vec!["V_DC", "I_DC"],
             leaves_structure: Some(leaves_structure),
             drift: None,
+            map_alias: None,
         }
     }
 
