@@ -672,7 +672,10 @@ fn a_wrong_map_is_not_claimed_as_the_sensor_gain_it_looks_like() {
         *z *= 0.98;
     }
     bench_data.write(&p.join("low")).unwrap();
-    ok(&simrod(p, &["bench", "--profile", "TP14", "--data-dir", "low", "--seed", "5", "-q", "--out", "m.csv"]));
+    ok(&simrod(
+        p,
+        &["bench", "--profile", "TP14", "--data-dir", "low", "--seed", "5", "-q", "--out", "m.csv"],
+    ));
     let diagnose = ["diagnose", "m.csv", "--json", "--write-effects", "fx.toml"];
     let j: Value = serde_json::from_str(&ok(&simrod(p, &diagnose))).unwrap();
     let verdict = j["verdict"].as_str().unwrap();
