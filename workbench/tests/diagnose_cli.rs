@@ -6,6 +6,7 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 use serde_json::Value;
+use workbench::datadir::ModelData;
 
 fn simrod(dir: &Path, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_simrod")).current_dir(dir).args(args).output().expect("run simrod")
@@ -14,6 +15,14 @@ fn simrod(dir: &Path, args: &[&str]) -> Output {
 fn ok(o: &Output) -> String {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// The built-in model data changed by `change`, written to `p/dir` for `--data-dir`: a
+/// bench whose physics is not the identified data.
+fn bench_data(p: &Path, dir: &str, change: impl FnOnce(&mut ModelData)) {
+    let mut d = ModelData::builtin().unwrap();
+    change(&mut d);
+    d.write(&p.join(dir)).unwrap();
 }
 
 fn rmse(dir: &Path, args: &[&str], channel: &str) -> f64 {
@@ -378,12 +387,11 @@ fn floors(run: &Path, exact: &Path) -> Vec<(String, f64)> {
 /// data must bring Throttle and the SuT speed to the true plant's error on the file.
 #[test]
 fn a_throttle_chain_off_by_one_percent_is_an_empirical_parameter_correction() {
-    use workbench::datadir::ModelData;
     let d = tempfile::tempdir().unwrap();
     let p = d.path();
-    let mut bench_data = ModelData::builtin().unwrap();
-    assert!(bench_data.set_param("throttle_volts_per_pct", 0.0506, "[V/%] the bench's chain"));
-    bench_data.write(&p.join("chain")).unwrap();
+    bench_data(p, "chain", |d| {
+        assert!(d.set_param("throttle_volts_per_pct", 0.0506, "[V/%] the bench's chain"));
+    });
     for (noise, out) in [("default", "m.csv"), ("none", "m0.csv")] {
         let a = [
             "bench",
@@ -432,14 +440,9 @@ fn a_throttle_chain_off_by_one_percent_is_an_empirical_parameter_correction() {
 /// must make no channel worse than 1.10x and cut V_DC's error at least fivefold.
 #[test]
 fn an_effect_a_wrong_map_hides_is_named_beside_the_maps_correction() {
-    use workbench::datadir::ModelData;
     let d = tempfile::tempdir().unwrap();
     let p = d.path();
-    let mut bench_data = ModelData::builtin().unwrap();
-    for z in &mut bench_data.sut_power.z {
-        *z *= 0.96;
-    }
-    bench_data.write(&p.join("weak")).unwrap();
+    bench_data(p, "weak", |d| d.sut_power.z.iter_mut().for_each(|z| *z *= 0.96));
     std::fs::write(p.join("hidden.toml"), "[connector_resistance]\nresistance_ohm = 0.036\n").unwrap();
     let a = ["bench", "--profile", "TP12", "--data-dir", "weak", "--effects", "hidden.toml", "--seed", "5"];
     ok(&simrod(p, &[&a[..], &["-q", "--out", "m.csv"]].concat()));
@@ -482,16 +485,9 @@ fn an_effect_a_wrong_map_hides_is_named_beside_the_maps_correction() {
 /// load scale, other noise), and none is made worse.
 #[test]
 fn a_wrong_map_gets_a_located_empirical_correction_that_holds_on_unseen_data() {
-    use workbench::datadir::ModelData;
     let d = tempfile::tempdir().unwrap();
     let p = d.path();
-    let mut bench_data = ModelData::builtin().unwrap();
-    for z in &mut bench_data.load_torque[0].z {
-        if *z > 0.0 {
-            *z *= 1.08;
-        }
-    }
-    bench_data.write(&p.join("strong")).unwrap();
+    bench_data(p, "strong", |d| d.load_torque[0].z.iter_mut().filter(|z| **z > 0.0).for_each(|z| *z *= 1.08));
     let bench = |extra: &[&str], out: &str| {
         let mut a = vec!["bench", "--profile", "TP07", "--data-dir", "strong", "-q", "--out", out];
         a.extend_from_slice(extra);
@@ -573,16 +569,15 @@ fn a_wrong_map_gets_a_located_empirical_correction_that_holds_on_unseen_data() {
 /// true plant model's error on the file.
 #[test]
 fn a_wrong_map_beside_library_effects_gets_the_effects_and_a_table_and_nothing_else() {
-    use workbench::datadir::ModelData;
     let d = tempfile::tempdir().unwrap();
     let p = d.path();
-    let mut bench_data = ModelData::builtin().unwrap();
-    for (x, y) in bench_data.speed_fwd.x.iter().zip(bench_data.speed_fwd.y.iter_mut()) {
-        if (10.0..=70.0).contains(x) {
-            *y *= 1.03;
+    bench_data(p, "fast", |d| {
+        for (x, y) in d.speed_fwd.x.iter().zip(d.speed_fwd.y.iter_mut()) {
+            if (10.0..=70.0).contains(x) {
+                *y *= 1.03;
+            }
         }
-    }
-    bench_data.write(&p.join("fast")).unwrap();
+    });
     std::fs::write(
         p.join("hidden.toml"),
         "[differential_friction]\ncoulomb_nm = 3.0\n[controller_delay]\ndelay_s = 0.03\n",
@@ -664,14 +659,9 @@ fn a_wrong_map_beside_library_effects_gets_the_effects_and_a_table_and_nothing_e
 /// physical effect absorbing a map's error is not caught by this test.)
 #[test]
 fn a_wrong_map_is_not_claimed_as_the_sensor_gain_it_looks_like() {
-    use workbench::datadir::ModelData;
     let d = tempfile::tempdir().unwrap();
     let p = d.path();
-    let mut bench_data = ModelData::builtin().unwrap();
-    for z in &mut bench_data.sut_power.z {
-        *z *= 0.98;
-    }
-    bench_data.write(&p.join("low")).unwrap();
+    bench_data(p, "low", |d| d.sut_power.z.iter_mut().for_each(|z| *z *= 0.98));
     ok(&simrod(
         p,
         &["bench", "--profile", "TP14", "--data-dir", "low", "--seed", "5", "-q", "--out", "m.csv"],

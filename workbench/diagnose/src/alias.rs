@@ -18,7 +18,7 @@ use std::sync::Arc;
 use simrod_io::datadir::ModelData;
 
 use super::empirical::{map_files, reshaped};
-use super::engine::{Candidate, MapAlias, Options, Twin, MOVES_SHARE};
+use super::engine::{Candidate, MapAlias, MapShape, Options, Twin, MOVES_SHARE};
 use super::preparation::{run_each, Prepared};
 use super::sensitivities::Sensitivities;
 
@@ -32,23 +32,7 @@ pub(super) const ALIAS_SHARE: f64 = 2.0 / 3.0;
 /// Step of a shape: a scale by 2 %, a shift by 2 % of the map's largest value.
 const STEP: f64 = 0.02;
 
-/// One shape of a map.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Shape {
-    /// Every value times `1 + θ` (what a sensor gain does).
-    Scale,
-    /// Every value plus `θ` times the map's largest value (what a sensor offset does).
-    Shift,
-}
-
-impl Shape {
-    fn name(self) -> &'static str {
-        match self {
-            Self::Scale => "scale",
-            Self::Shift => "shift",
-        }
-    }
-
+impl MapShape {
     /// Map value `v` with the shape's step applied (`peak`: the map's largest |value|).
     fn apply(self, v: f64, peak: f64) -> f64 {
         match self {
@@ -58,21 +42,10 @@ impl Shape {
     }
 }
 
-/// The map shape that may stand for candidate cause `cause`: a gain of one channel a
-/// scale, an offset a shift; `None` for any other cause.
-fn shape_for(s: &Sensitivities, cause: &str) -> Option<Shape> {
-    let spec = s.specs.iter().find(|sp| sp.cause == cause && sp.is_chain())?;
-    match spec.effect {
-        "sensor_gain" => Some(Shape::Scale),
-        "sensor_offset" => Some(Shape::Shift),
-        _ => None,
-    }
-}
-
 /// A map shape's response, per unit of the shape, `[channel][fit sample]`.
 struct Response {
     file: &'static str,
-    shape: Shape,
+    shape: MapShape,
     j: Vec<Vec<f64>>,
 }
 
@@ -89,7 +62,7 @@ pub(super) fn map_aliases(
 ) {
     let sensors = sensors(p, s, twin.channels(), cands);
     let Some(base) = twin.data().filter(|_| !sensors.is_empty()) else { return };
-    let needed = |shape: Shape| sensors.iter().any(|x| x.shape == shape);
+    let needed = |shape: MapShape| sensors.iter().any(|x| x.shape == shape);
     let Some((sim0, responses)) = responses(twin, p, o, &base, needed) else { return };
     let r: Vec<Vec<f64>> = p
         .meas
@@ -103,7 +76,7 @@ pub(super) fn map_aliases(
             .filter(|m| m.shape == x.shape)
             .filter_map(|m| {
                 let (removed, value) = one_shape(&m.j, &r, &p.weights, x.channel)?;
-                Some(MapAlias { file: m.file, shape: m.shape.name(), value, share: removed / x.removed })
+                Some(MapAlias { file: m.file, shape: m.shape, value, share: removed / x.removed })
             })
             .max_by(|a, b| a.share.total_cmp(&b.share));
         if let (Some(a), Some(c)) = (best.filter(|a| a.share >= ALIAS_SHARE), cands.get_mut(x.cand)) {
@@ -117,11 +90,13 @@ pub(super) fn map_aliases(
 struct Sensor {
     cand: usize,
     channel: usize,
-    shape: Shape,
+    shape: MapShape,
     removed: f64,
 }
 
-/// The refitted, significant gains and offsets of one channel among `cands`.
+/// The refitted, significant gains and offsets of one channel among `cands`, each with
+/// the shape that mimics it (a gain a scale, an offset a shift; the maps are static, so
+/// a delay or a lag has none).
 fn sensors(
     p: &Prepared,
     s: &Sensitivities,
@@ -133,9 +108,13 @@ fn sensors(
         .enumerate()
         .filter(|(_, c)| c.significant)
         .filter_map(|(i, c)| {
-            let shape = shape_for(s, c.effect)?;
-            let param = s.specs.iter().find(|sp| sp.cause == c.effect)?.param;
-            let channel = channels.iter().position(|ch| ch.key() == param)?;
+            let spec = s.specs.iter().find(|sp| sp.cause == c.effect && sp.is_chain())?;
+            let shape = match spec.effect {
+                "sensor_gain" => MapShape::Scale,
+                "sensor_offset" => MapShape::Shift,
+                _ => return None,
+            };
+            let channel = channels.iter().position(|ch| ch.key() == spec.param)?;
             let removed = p.e0 - c.energy_after?;
             (removed > 0.0).then_some(Sensor { cand: i, channel, shape, removed })
         })
@@ -150,20 +129,20 @@ fn responses(
     p: &Prepared,
     o: &Options,
     base: &Arc<ModelData>,
-    needed: impl Fn(Shape) -> bool,
+    needed: impl Fn(MapShape) -> bool,
 ) -> Option<(Vec<Vec<f32>>, Vec<Response>)> {
-    let mut jobs: Vec<Option<(&'static str, bool, Shape)>> = vec![None];
+    let mut jobs: Vec<Option<(&'static str, MapShape)>> = vec![None];
     for (file, friction) in map_files() {
-        for shape in [Shape::Scale, Shape::Shift] {
+        for shape in [MapShape::Scale, MapShape::Shift] {
             // Friction changes sign with speed: a shift is no shape it has.
-            if needed(shape) && !(friction && shape == Shape::Shift) {
-                jobs.push(Some((file, friction, shape)));
+            if needed(shape) && !(friction && shape == MapShape::Shift) {
+                jobs.push(Some((file, shape)));
             }
         }
     }
     let runs = run_each(&jobs, o, |job| match job {
         None => twin.run_data(base, &o.base, p.stride),
-        Some((file, _, shape)) => {
+        Some((file, shape)) => {
             let d = reshaped(base, file, |v, peak| shape.apply(v, peak)).ok_or("no such map")?;
             twin.run_data(&Arc::new(d), &o.base, p.stride)
         }
@@ -175,7 +154,7 @@ fn responses(
         .skip(1)
         .zip(runs)
         .filter_map(|(job, out)| {
-            let (file, _, shape) = (*job)?;
+            let (file, shape) = (*job)?;
             Some(Response { file, shape, j: response(p, &sim0, &out.ok()?) })
         })
         .collect();

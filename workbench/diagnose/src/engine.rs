@@ -248,13 +248,22 @@ pub struct Candidate {
 pub struct MapAlias {
     /// The map's data file.
     pub file: &'static str,
-    /// `scale` (every value times `1 + value`, for a gain) or `shift` (every value plus
-    /// `value` times the map's largest value, for an offset).
-    pub shape: &'static str,
+    /// How the map changes.
+    pub shape: MapShape,
     /// The shape's best value.
     pub value: f64,
     /// The error it removes, as a share of what the sensor cause's refit removes.
     pub share: f64,
+}
+
+/// One shape of a map ([`MapAlias`]).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MapShape {
+    /// Every value times `1 + value` (what a sensor gain does).
+    Scale,
+    /// Every value plus `value` times the map's largest value (what a sensor offset does).
+    Shift,
 }
 
 /// Share of a candidate's weighted sensitivity a channel must carry to count as moved.

@@ -5,7 +5,7 @@
 
 use model_core::{Channel, Effects};
 
-use super::engine::{Candidate, ConfoundedGroup, Location, MapAlias, Options, SetFit, VerdictKind};
+use super::engine::{Candidate, ConfoundedGroup, Location, MapAlias, MapShape, Options, SetFit, VerdictKind};
 use super::library::{with_values, ParamSpec};
 use super::locate::{follows, region};
 use super::preparation::{channel_energies, worse_somewhere, Prepared};
@@ -460,8 +460,8 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
 /// Why sensor cause `c` is not claimed when one shape of map `a` does what it does.
 fn alias_refusal(c: &Candidate, a: &MapAlias) -> String {
     let what = match a.shape {
-        "scale" => format!("scaling {} by {:+.1} %", a.file, 100.0 * a.value),
-        _ => format!("shifting {} by {:+.1} % of its largest value", a.file, 100.0 * a.value),
+        MapShape::Scale => format!("scaling {} by {:+.1} %", a.file, 100.0 * a.value),
+        MapShape::Shift => format!("shifting {} by {:+.1} % of its largest value", a.file, 100.0 * a.value),
     };
     format!(
         "{what} removes {:.0} % as much: a wrong map and a miscalibrated sensor look alike on {}",
