@@ -4,14 +4,16 @@
 //! a load motor's current is its power map over the voltage, so a gain of that
 //! current's sensor and a scale of the map change the run alike (the map also moves the
 //! supply current); a SuT inverter power map 2 % low reads as an I_DC sensor gain. A
-//! refitted, significant gain (offset) of one channel is marked as the map's error when
-//! the scale (shift) of some map that moves that channel removes at least
-//! [`ALIAS_SHARE`] of what the sensor's refit removes: the run then cannot tell a
-//! miscalibrated sensor from a wrong map, and the verdict says so instead of claiming
-//! the sensor (the empirical correction fits the map). A delay or a lag has no map
-//! shape (the maps are static), and physical effects are left to the ranking and the
-//! table's comparison: a differential friction on a reversed, unloaded run draws power
-//! as a stronger SuT inverter map would, and is the true cause as often as not.
+//! refitted, significant gain (offset) of one channel, or one the selected set names,
+//! is marked as the map's error when the scale (shift) of some map that moves that
+//! channel removes at least [`ALIAS_SHARE`] of what the sensor's refit removes: the run
+//! then cannot tell a miscalibrated sensor from a wrong map, and the verdict says so
+//! instead of claiming the sensor (the empirical correction fits the map). A delay or a
+//! lag has no map shape (the maps are static). The throttle chain's volts per percent
+//! counts as a map of one value (its shift is its scale). Physical effects are left to
+//! the ranking and the table's comparison: a differential friction on a reversed,
+//! unloaded run draws power as a stronger SuT inverter map would, and is the true cause
+//! as often as not.
 
 use std::sync::Arc;
 
@@ -58,9 +60,10 @@ pub(super) fn map_aliases(
     p: &Prepared,
     s: &Sensitivities,
     o: &Options,
+    selected: &[(&'static str, f64)],
     cands: &mut [Candidate],
 ) {
-    let sensors = sensors(p, s, twin.channels(), cands);
+    let sensors = sensors(p, s, twin.channels(), cands, selected);
     let Some(base) = twin.data().filter(|_| !sensors.is_empty()) else { return };
     let needed = |shape: MapShape| sensors.iter().any(|x| x.shape == shape);
     let Some((sim0, responses)) = responses(twin, p, o, &base, needed) else { return };
@@ -94,19 +97,22 @@ struct Sensor {
     removed: f64,
 }
 
-/// The refitted, significant gains and offsets of one channel among `cands`, each with
-/// the shape that mimics it (a gain a scale, an offset a shift; the maps are static, so
-/// a delay or a lag has none).
+/// The gains and offsets of one channel among `cands` that the verdict may name: the
+/// refitted, significant ones (with what their refit removed) and the members of the
+/// `selected` set (with what they remove alone, linear, as a shape's removal is), each
+/// with the shape that mimics it (a gain a scale, an offset a shift; the maps are
+/// static, so a delay or a lag has none).
 fn sensors(
     p: &Prepared,
     s: &Sensitivities,
     channels: &[model_core::Channel],
     cands: &[Candidate],
+    selected: &[(&'static str, f64)],
 ) -> Vec<Sensor> {
+    let member = |c: &Candidate| selected.iter().any(|(e, _)| *e == c.effect);
     cands
         .iter()
         .enumerate()
-        .filter(|(_, c)| c.significant)
         .filter_map(|(i, c)| {
             let spec = s.specs.iter().find(|sp| sp.cause == c.effect && sp.is_chain())?;
             let shape = match spec.effect {
@@ -115,7 +121,11 @@ fn sensors(
                 _ => return None,
             };
             let channel = channels.iter().position(|ch| ch.key() == spec.param)?;
-            let removed = p.e0 - c.energy_after?;
+            let removed = match c.energy_after.filter(|_| c.significant) {
+                Some(after) => p.e0 - after,
+                None if member(c) => c.predicted_reduction * p.excess,
+                None => return None,
+            };
             (removed > 0.0).then_some(Sensor { cand: i, channel, shape, removed })
         })
         .collect()

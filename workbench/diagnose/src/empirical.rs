@@ -43,6 +43,9 @@ const MAX_MAPS: usize = 4;
 const SCREEN_SHARE: f64 = 0.02;
 /// Least share of the remaining excess error a map must add on held-out data to join.
 const GAIN_SHARE: f64 = 0.03;
+/// Share of the excess a [`CHAIN`] companion of a selected table must add on held-out
+/// data to join it.
+const COMPANION_SHARE: f64 = 0.01;
 /// Least share of the remaining excess error the correction must remove, on held-out
 /// data and on the simulator, to be offered.
 const OFFER_SHARE: f64 = 0.10;
@@ -235,13 +238,13 @@ fn values_mut<'a>(d: &'a mut ModelData, file: &str) -> Option<(&'a mut [f32], No
     })
 }
 
-/// The maps of [`MAPS`] (not the scalar parameters), each with whether its axis crosses
-/// zero where its value changes sign (friction: a shift of it is not a shape it has).
+/// The tables of [`MAPS`] (a scalar parameter is a one-node table, its shift a scale),
+/// each with whether its axis crosses zero where its value changes sign (friction: a
+/// shift of it is not a shape it has).
 pub(super) fn map_files() -> impl Iterator<Item = (&'static str, bool)> {
-    MAPS.iter().filter_map(|&(file, axis)| match axis {
-        Axis::Scalar => None,
-        Axis::One { signed } => Some((file, signed)),
-        _ => Some((file, false)),
+    MAPS.iter().map(|&(file, axis)| match axis {
+        Axis::One { signed } => (file, signed),
+        _ => (file, false),
     })
 }
 
@@ -672,7 +675,8 @@ fn candidates(base: &ModelData, sps: &[SetPoints]) -> Vec<MapNodes> {
 }
 
 /// Maps whose shift and tilt over their visited nodes can remove at least
-/// [`SCREEN_SHARE`] of the excess, best first, at most [`MAX_MAPS`].
+/// [`SCREEN_SHARE`] of the excess, best first, at most [`MAX_MAPS`], with their
+/// companions ([`CHAIN`]).
 fn screen(inp: &Inputs, base: &ModelData, maps: &[MapNodes], b: &Basis) -> Vec<usize> {
     let jobs: Vec<(usize, bool)> = (0..maps.len()).flat_map(|m| [(m, false), (m, true)]).collect();
     let runs: Vec<RunResult> = run_each(&jobs, inp.o, |&(m, tilt)| {
@@ -700,7 +704,29 @@ fn screen(inp: &Inputs, base: &ModelData, maps: &[MapNodes], b: &Basis) -> Vec<u
         }
     }
     scored.sort_by(|a, b| b.1.total_cmp(&a.1));
-    scored.into_iter().take(MAX_MAPS).map(|(m, _)| m).collect()
+    let mut chosen: Vec<usize> = scored.into_iter().take(MAX_MAPS).map(|(m, _)| m).collect();
+    with_companions(&mut chosen, maps);
+    chosen
+}
+
+/// The throttle chain's tables, each the others' companion: the volts per percent sets
+/// both the recorded Throttle and the controller's command, a speed map only the
+/// command, so a speed map's error fitted as the volts per percent leaves the Throttle
+/// channel wrong (read later as a Throttle offset), and the Throttle channel's fit of
+/// it leaves the speed wrong. Fitted together, the Throttle channel sets the volts per
+/// percent and the speed maps take the rest.
+const CHAIN: [&str; 3] = ["parameters.toml:throttle_volts_per_pct", "speed_map_fwd.csv", "speed_map_rev.csv"];
+
+/// Add to `chosen` (indices into `maps`) the [`CHAIN`] companions of a chain table in it.
+fn with_companions(chosen: &mut Vec<usize>, maps: &[MapNodes]) {
+    if !chosen.iter().any(|&m| maps.get(m).is_some_and(|x| CHAIN.contains(&x.file))) {
+        return;
+    }
+    for (i, m) in maps.iter().enumerate() {
+        if CHAIN.contains(&m.file) && !chosen.contains(&i) {
+            chosen.push(i);
+        }
+    }
 }
 
 /// Forward selection over the screened maps on held-out data, the joint fit, and its
@@ -714,6 +740,7 @@ fn select(
 ) -> Option<Empirical> {
     let w = &inp.p.weights;
     let excess = b.excess;
+    let chain = |m: &MapNodes| CHAIN.contains(&m.file) && !m.nodes.is_empty();
     let fit_of = |set: &[usize]| {
         let refs: Vec<&Vec<Vec<f64>>> = set.iter().flat_map(|&s| cols[s].iter()).collect();
         let mn: Vec<&MapNodes> = set.iter().map(|&s| maps[s]).collect();
@@ -746,6 +773,21 @@ fn select(
     }
     if set.is_empty() {
         return None;
+    }
+    // A chain table's companions join it at a third of the bar for a table of its own:
+    // apart, each would leave the other's error on the channel only it moves.
+    if set.iter().any(|&s| chain(maps[s])) {
+        let companions: Vec<usize> =
+            (0..maps.len()).filter(|&c| chain(maps[c]) && !set.contains(&c)).collect();
+        for c in companions {
+            let mut t = set.clone();
+            t.push(c);
+            let f = fit_of(&t);
+            if f.heldout - best.heldout >= COMPANION_SHARE * excess {
+                set = t;
+                best = f;
+            }
+        }
     }
     // The linearisation can overshoot where maps act nonlinearly (a speed map and a
     // throttle map corrected together): the step is then taken half or a quarter of the
@@ -1094,5 +1136,18 @@ mod tests {
         let (held, _, th) = best_lambda(&nm, &p, &[10.0; 3]);
         assert!(held > 0.0, "{held}");
         assert!((th[1] - th[0] - 1.0).abs() < 0.2 && (th[2] - th[1] - 1.0).abs() < 0.2, "{th:?}");
+    }
+
+    /// A chain table chosen brings its companions; a set without one brings none.
+    #[test]
+    fn a_chain_table_is_screened_with_its_companions() {
+        let m = |file| MapNodes { file, axis: Axis::Scalar, nodes: vec![0], step: 0.001, limit: 10.0 };
+        let maps = [m("load_torque_L.csv"), m("speed_map_fwd.csv"), m(CHAIN[0]), m("speed_map_rev.csv")];
+        let mut chosen = vec![0];
+        with_companions(&mut chosen, &maps);
+        assert_eq!(chosen, [0]);
+        let mut chosen = vec![0, 2];
+        with_companions(&mut chosen, &maps);
+        assert_eq!(chosen, [0, 2, 1, 3]);
     }
 }

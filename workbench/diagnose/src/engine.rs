@@ -403,7 +403,7 @@ fn stages(
             c.leaves_structure = Some(structure(&f.sim).is_some());
         }
     }
-    map_aliases(twin, &p, &s, o, &mut cands);
+    map_aliases(twin, &p, &s, o, &selected, &mut cands);
     let ranking = rank(&cands);
     let base_structure = structure(&p.base_sim);
     let group = Leaders { cands: &cands, lin: &lin, fits: &fits, ranking: &ranking };
