@@ -364,6 +364,15 @@ fn a_late_channel_is_named_as_its_delay_not_a_physical_effect() {
     }
 }
 
+/// A TP07 run of the bench whose model data is `p/data`: `m.csv` with the default
+/// noise, `m0.csv` without (its floor).
+fn noisy_and_exact(p: &Path, data: &str, seed: &str) {
+    for (noise, out) in [("default", "m.csv"), ("none", "m0.csv")] {
+        let a = ["bench", "--profile", "TP07", "--data-dir", data, "--seed", seed, "--noise", noise];
+        ok(&simrod(p, &[&a[..], &["-q", "--out", out]].concat()));
+    }
+}
+
 /// Per channel of `run`: the RMS difference to the noise-free run `exact` of the same
 /// bench (the error of the true plant model on the file: the floor).
 fn floors(run: &Path, exact: &Path) -> Vec<(String, f64)> {
@@ -392,23 +401,7 @@ fn a_throttle_chain_off_by_one_percent_is_an_empirical_parameter_correction() {
     bench_data(p, "chain", |d| {
         assert!(d.set_param("throttle_volts_per_pct", 0.0506, "[V/%] the bench's chain"));
     });
-    for (noise, out) in [("default", "m.csv"), ("none", "m0.csv")] {
-        let a = [
-            "bench",
-            "--profile",
-            "TP07",
-            "--data-dir",
-            "chain",
-            "--seed",
-            "71",
-            "--noise",
-            noise,
-            "-q",
-            "--out",
-            out,
-        ];
-        ok(&simrod(p, &a));
-    }
+    noisy_and_exact(p, "chain", "71");
     let j: Value =
         serde_json::from_str(&ok(&simrod(p, &["diagnose", "m.csv", "--json", "--write-data", "fixed"])))
             .unwrap();
@@ -703,10 +696,7 @@ fn the_volts_per_percent_is_fitted_with_the_speed_map_it_shares_the_command_with
         assert!(d.set_param("throttle_volts_per_pct", 0.0501, "[V/%] the bench's chain"));
         d.speed_fwd.y.iter_mut().for_each(|y| *y *= 1.02);
     });
-    for (noise, out) in [("default", "m.csv"), ("none", "m0.csv")] {
-        let a = ["bench", "--profile", "TP07", "--data-dir", "chain", "--seed", "73", "--noise", noise];
-        ok(&simrod(p, &[&a[..], &["-q", "--out", out]].concat()));
-    }
+    noisy_and_exact(p, "chain", "73");
     let j: Value =
         serde_json::from_str(&ok(&simrod(p, &["diagnose", "m.csv", "--json", "--write-data", "fixed"])))
             .unwrap();
