@@ -19,12 +19,13 @@ use std::sync::Arc;
 
 use simrod_io::datadir::ModelData;
 
-use super::empirical::{map_files, reshaped};
+use super::empirical::{map_files, reshaped, Shift};
 use super::engine::{Candidate, MapAlias, MapShape, Options, Twin, MOVES_SHARE};
 use super::preparation::{run_each, Prepared};
 use super::sensitivities::Sensitivities;
 
-/// Share of a sensor cause's removed error (its refit, on the simulator) that one shape
+/// Share of a sensor cause's removed error (its refit, on the simulator; a set member's
+/// linear removal when it was not refitted) that one shape
 /// of a map must remove (linear, one parameter) to stand for it. Below 1: a map error is
 /// never exactly one shape, and a sensor miscalibrated by the few percent these fits
 /// find is no likelier than a map off by as much. On the tuning seeds 500,420–499 a
@@ -48,13 +49,22 @@ impl MapShape {
 struct Response {
     file: &'static str,
     shape: MapShape,
+    /// A scale that is also the table's shift (a scalar): it stands for an offset too.
+    also_shift: bool,
     j: Vec<Vec<f64>>,
 }
 
-/// Set [`Candidate::map_alias`] of every refitted, significant sensor gain or offset
-/// that one shape of a map stands for. Costs one simulation per map and shape needed
-/// (and the current model on the twin's data), none when no such candidate is
-/// significant.
+impl Response {
+    /// Whether this response is the table's `shape`.
+    fn is(&self, shape: MapShape) -> bool {
+        self.shape == shape || (self.also_shift && shape == MapShape::Shift)
+    }
+}
+
+/// Set [`Candidate::map_alias`] of every sensor gain or offset the verdict may name
+/// (refitted and significant, or in the `selected` set) that one shape of a map stands
+/// for. Costs one simulation per map and shape needed (and the current model on the
+/// twin's data), none when there is no such candidate.
 pub(super) fn map_aliases(
     twin: &dyn Twin,
     p: &Prepared,
@@ -76,7 +86,7 @@ pub(super) fn map_aliases(
     for x in &sensors {
         let best = responses
             .iter()
-            .filter(|m| m.shape == x.shape)
+            .filter(|m| m.is(x.shape))
             .filter_map(|m| {
                 let (removed, value) = one_shape(&m.j, &r, &p.weights, x.channel)?;
                 Some(MapAlias { file: m.file, shape: m.shape, value, share: removed / x.removed })
@@ -88,8 +98,8 @@ pub(super) fn map_aliases(
     }
 }
 
-/// A refitted, significant gain or offset of one channel: the candidate's index, the
-/// channel's, the shape that mimics it and the weighted error its refit removed.
+/// A gain or offset of one channel the verdict may name: the candidate's index, the
+/// channel's, the shape that mimics it and the weighted error it removes.
 struct Sensor {
     cand: usize,
     channel: usize,
@@ -132,8 +142,8 @@ fn sensors(
 }
 
 /// The current model on the twin's data `base`, and each map's response to each shape
-/// `needed` (no shift of friction), one simulation per map and shape; `None` when the
-/// current model does not run on it.
+/// `needed` (no shift of friction; a scalar's one scale serves for both), one
+/// simulation per map and shape; `None` when the current model does not run on it.
 fn responses(
     twin: &dyn Twin,
     p: &Prepared,
@@ -141,18 +151,19 @@ fn responses(
     base: &Arc<ModelData>,
     needed: impl Fn(MapShape) -> bool,
 ) -> Option<(Vec<Vec<f32>>, Vec<Response>)> {
-    let mut jobs: Vec<Option<(&'static str, MapShape)>> = vec![None];
-    for (file, friction) in map_files() {
-        for shape in [MapShape::Scale, MapShape::Shift] {
-            // Friction changes sign with speed: a shift is no shape it has.
-            if needed(shape) && !(friction && shape == MapShape::Shift) {
-                jobs.push(Some((file, shape)));
-            }
+    let mut jobs: Vec<Option<(&'static str, MapShape, bool)>> = vec![None];
+    for (file, shift) in map_files() {
+        let also_shift = shift == Shift::IsScale;
+        if needed(MapShape::Scale) || (also_shift && needed(MapShape::Shift)) {
+            jobs.push(Some((file, MapShape::Scale, also_shift)));
+        }
+        if shift == Shift::Own && needed(MapShape::Shift) {
+            jobs.push(Some((file, MapShape::Shift, false)));
         }
     }
     let runs = run_each(&jobs, o, |job| match job {
         None => twin.run_data(base, &o.base, p.stride),
-        Some((file, shape)) => {
+        Some((file, shape, _)) => {
             let d = reshaped(base, file, |v, peak| shape.apply(v, peak)).ok_or("no such map")?;
             twin.run_data(&Arc::new(d), &o.base, p.stride)
         }
@@ -164,8 +175,8 @@ fn responses(
         .skip(1)
         .zip(runs)
         .filter_map(|(job, out)| {
-            let (file, shape) = (*job)?;
-            Some(Response { file, shape, j: response(p, &sim0, &out.ok()?) })
+            let (file, shape, also_shift) = (*job)?;
+            Some(Response { file, shape, also_shift, j: response(p, &sim0, &out.ok()?) })
         })
         .collect();
     Some((sim0, responses))

@@ -238,13 +238,22 @@ fn values_mut<'a>(d: &'a mut ModelData, file: &str) -> Option<(&'a mut [f32], No
     })
 }
 
-/// The tables of [`MAPS`] (a scalar parameter is a one-node table, its shift a scale),
-/// each with whether its axis crosses zero where its value changes sign (friction: a
-/// shift of it is not a shape it has).
-pub(super) fn map_files() -> impl Iterator<Item = (&'static str, bool)> {
+/// What shifting every value of a table does: a shape of its own, none (friction's axis
+/// crosses zero where its value changes sign), or the same as scaling it (a scalar
+/// parameter, a table of one node).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Shift {
+    Own,
+    None,
+    IsScale,
+}
+
+/// The tables of [`MAPS`], each with what shifting it does.
+pub(super) fn map_files() -> impl Iterator<Item = (&'static str, Shift)> {
     MAPS.iter().map(|&(file, axis)| match axis {
-        Axis::One { signed } => (file, signed),
-        _ => (file, false),
+        Axis::One { signed: true } => (file, Shift::None),
+        Axis::Scalar => (file, Shift::IsScale),
+        _ => (file, Shift::Own),
     })
 }
 
@@ -717,13 +726,18 @@ fn screen(inp: &Inputs, base: &ModelData, maps: &[MapNodes], b: &Basis) -> Vec<u
 /// percent and the speed maps take the rest.
 const CHAIN: [&str; 3] = ["parameters.toml:throttle_volts_per_pct", "speed_map_fwd.csv", "speed_map_rev.csv"];
 
+/// Whether `m` is one of the [`CHAIN`] tables and has nodes to correct.
+fn in_chain(m: &MapNodes) -> bool {
+    CHAIN.contains(&m.file) && !m.nodes.is_empty()
+}
+
 /// Add to `chosen` (indices into `maps`) the [`CHAIN`] companions of a chain table in it.
 fn with_companions(chosen: &mut Vec<usize>, maps: &[MapNodes]) {
-    if !chosen.iter().any(|&m| maps.get(m).is_some_and(|x| CHAIN.contains(&x.file))) {
+    if !chosen.iter().any(|&m| maps.get(m).is_some_and(in_chain)) {
         return;
     }
     for (i, m) in maps.iter().enumerate() {
-        if CHAIN.contains(&m.file) && !chosen.contains(&i) {
+        if in_chain(m) && !chosen.contains(&i) {
             chosen.push(i);
         }
     }
@@ -740,7 +754,6 @@ fn select(
 ) -> Option<Empirical> {
     let w = &inp.p.weights;
     let excess = b.excess;
-    let chain = |m: &MapNodes| CHAIN.contains(&m.file) && !m.nodes.is_empty();
     let fit_of = |set: &[usize]| {
         let refs: Vec<&Vec<Vec<f64>>> = set.iter().flat_map(|&s| cols[s].iter()).collect();
         let mn: Vec<&MapNodes> = set.iter().map(|&s| maps[s]).collect();
@@ -776,9 +789,9 @@ fn select(
     }
     // A chain table's companions join it at a third of the bar for a table of its own:
     // apart, each would leave the other's error on the channel only it moves.
-    if set.iter().any(|&s| chain(maps[s])) {
+    if set.iter().any(|&s| in_chain(maps[s])) {
         let companions: Vec<usize> =
-            (0..maps.len()).filter(|&c| chain(maps[c]) && !set.contains(&c)).collect();
+            (0..maps.len()).filter(|&c| in_chain(maps[c]) && !set.contains(&c)).collect();
         for c in companions {
             let mut t = set.clone();
             t.push(c);
@@ -1149,5 +1162,7 @@ mod tests {
         let mut chosen = vec![0, 2];
         with_companions(&mut chosen, &maps);
         assert_eq!(chosen, [0, 2, 1, 3]);
+        // The companions are named as MAPS names them, or they would never be found.
+        assert!(CHAIN.iter().all(|c| MAPS.iter().any(|(f, _)| f == c)), "{CHAIN:?}");
     }
 }

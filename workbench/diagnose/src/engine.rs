@@ -13,7 +13,7 @@
 //!    its declared grid instead ([`scan`](super::scan)).
 //! 4. [`refit`](super::refit): Levenberg–Marquardt refit of the leaders on the real
 //!    simulator; the error it removes, measured, not predicted.
-//!    A refitted sensor gain or offset that one shape of a map mimics is marked
+//!    A sensor gain or offset the verdict may name that one shape of a map mimics is marked
 //!    ([`alias`](super::alias)): the run cannot tell the sensor from a wrong map.
 //! 5. [`uncertainty`](super::uncertainty): a sandwich (HAC) covariance with a positive
 //!    semi-definite (Bartlett-tapered) noise correlation, widened to the spread of the
