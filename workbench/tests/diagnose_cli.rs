@@ -364,6 +364,48 @@ fn a_late_channel_is_named_as_its_delay_not_a_physical_effect() {
     }
 }
 
+/// Two acquisition faults at once on a light TP07 (throttle 0.6, loads -0.54): a 45 ms
+/// lag on I_DPU 2.7 and SuTMotorEnc recorded 22 ms late. A delay and a lag look alike
+/// to first order, and the selection used to name the lag a 29 ms delay, which left
+/// I_DPU 2.7 at 1.4x its floor under a noise-like verdict the next round. The set must
+/// name the lag with the truth in its interval, and what it writes must bring I_DPU 2.7
+/// to within 1.2x the true plant model's error on the file.
+#[test]
+fn a_lag_beside_a_delay_is_named_as_a_lag_not_the_delay_it_resembles() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path();
+    std::fs::write(
+        p.join("fault.toml"),
+        "[amplifier_lag]\ni_dpu_2_7 = 0.045\n[daq_skew]\nsutmotorenc = 0.022\n",
+    )
+    .unwrap();
+    for (noise, out) in [("default", "m.csv"), ("none", "m0.csv")] {
+        let scales = ["--throttle-scale", "0.6", "--load-scale", "-0.54", "--seed", "101"];
+        let a =
+            ["bench", "--profile", "TP07", "--effects", "fault.toml", "--noise", noise, "-q", "--out", out];
+        ok(&simrod(p, &[&a[..], &scales[..]].concat()));
+    }
+    let out = ok(&simrod(p, &["diagnose", "m.csv", "--json", "--write-effects", "found.toml"]));
+    let j: Value = serde_json::from_str(&out).unwrap();
+    let verdict = j["verdict"].as_str().unwrap();
+    let named: Vec<&str> =
+        j["selected"].as_array().unwrap().iter().filter_map(|s| s["effect"].as_str()).collect();
+    assert!(
+        named.contains(&"sensor_lag.i_dpu_2_7") && !named.contains(&"sensor_delay.i_dpu_2_7"),
+        "{verdict}"
+    );
+    let lag =
+        j["ranking"].as_array().unwrap().iter().find(|c| c["effect"] == "sensor_lag.i_dpu_2_7").unwrap();
+    let ci = &lag["ci95"]["i_dpu_2_7"];
+    let (lo, hi) = (ci[0].as_f64().unwrap(), ci[1].as_f64().unwrap());
+    assert!(lo <= 0.045 && 0.045 <= hi, "interval {lo}..{hi} misses 0.045 s");
+    let floor =
+        floors(&p.join("m.csv"), &p.join("m0.csv")).into_iter().find(|(c, _)| c == "I_DPU 2.7").unwrap().1;
+    let after =
+        rmse(p, &["compare", "m.csv", "--json", "--no-history", "--effects", "found.toml"], "I_DPU 2.7");
+    assert!(after <= 1.2 * floor, "I_DPU 2.7 RMSE {after} A against a floor of {floor} A");
+}
+
 /// A TP07 run of the bench whose model data is `p/data`: `m.csv` with the default
 /// noise, `m0.csv` without (its floor).
 fn noisy_and_exact(p: &Path, data: &str, seed: &str) {

@@ -11,6 +11,8 @@
 //!    regression on the linearised model.
 //!    A parameter whose objective has narrow valleys (a gear's free play) is scanned on
 //!    its declared grid instead ([`scan`](super::scan)).
+//!    A channel's delay and its lag, alike to first order, are told apart by refitting
+//!    both ([`dynamics`](super::dynamics)).
 //! 4. [`refit`](super::refit): Levenberg–Marquardt refit of the leaders on the real
 //!    simulator; the error it removes, measured, not predicted.
 //!    A sensor gain or offset the verdict may name that one shape of a map mimics is marked
@@ -32,6 +34,7 @@ use simrod_io::datadir::ModelData;
 use super::alias::map_aliases;
 use super::confounding::{confounded_groups, Leaders};
 pub use super::constancy::Drift;
+use super::dynamics::choose_dynamics;
 use super::empirical::{correct, Empirical, Inputs as EmpiricalInputs};
 use super::library::ParamSpec;
 use super::preparation::{prepare, Prepared};
@@ -389,10 +392,11 @@ fn stages(
     let s = sensitivities(twin, &p, o)?;
     let (mut cands, lin) = score_effects(&p, &s, twin.channels());
     scan_valleys(twin, &p, &s, o, &mut cands);
-    let selected = greedy(&p, &s, o);
+    let mut selected = greedy(&p, &s, o);
+    let ready = choose_dynamics(twin, &p, &s, o, &cands, &mut selected);
     let leaders = refit_list(&cands, &selected, o);
     let (fits, set) = rayon::join(
-        || confirm_leaders(twin, &p, &s, o, &leaders, &mut cands),
+        || confirm_leaders(twin, &p, &s, o, &leaders, ready, &mut cands),
         || joint_fit(twin, &p, &s, o, &selected),
     );
     let resolution = twin.resolution();
@@ -423,7 +427,6 @@ fn stages(
         base_structure,
     };
     let (v, empirical) = tables(twin, &ev, conclude(&ev));
-    let mut selected = selected;
     selected.retain(|(e, _)| v.named.contains(e));
     let sentence = match empirical.as_ref() {
         Some(e) if e.refused.is_none() => format!("{}; {}", v.sentence, e.offer()),
@@ -591,24 +594,40 @@ impl SetFit {
 
 /// Refit the candidates `list` on the simulator, with their uncertainty, and write the
 /// results into `cands`; the refits by candidate index (a failed refit is left out).
+/// The refits `ready` (by candidate index) are used as they are, and confirmed too when
+/// not in `list`.
 fn confirm_leaders(
     twin: &dyn Twin,
     p: &Prepared,
     s: &Sensitivities,
     o: &Options,
     list: &[usize],
+    ready: Vec<(usize, Fit)>,
     cands: &mut [Candidate],
 ) -> Vec<(usize, Fit)> {
     use rayon::prelude::*;
     let specs = |ci: usize| -> Vec<&ParamSpec> { s.groups[ci].1.iter().map(|&i| &s.specs[i]).collect() };
+    let mut ready: Vec<Option<(usize, Fit)>> = ready.into_iter().map(Some).collect();
+    let mut jobs: Vec<(usize, Option<Fit>)> = list
+        .iter()
+        .map(|&ci| {
+            (ci, ready.iter_mut().find(|r| r.as_ref().is_some_and(|r| r.0 == ci)).and_then(Option::take))
+        })
+        .map(|(ci, r)| (ci, r.map(|r| r.1)))
+        .collect();
+    jobs.extend(ready.into_iter().flatten().map(|(ci, f)| (ci, Some(f))));
     // The refits are independent: on the pool side by side (each one's own batches of
     // simulations share the pool), in list order.
-    let done: Vec<(usize, Fit, Spread)> = list
-        .par_iter()
-        .filter_map(|&ci| {
+    let done: Vec<(usize, Fit, Spread)> = jobs
+        .into_par_iter()
+        .filter_map(|(ci, fit)| {
             let sp = specs(ci);
-            let start: Vec<f64> = cands[ci].params.iter().map(|f| f.value).collect();
-            let fit = refit(twin, p, o, &sp, &start)?;
+            let fit = match fit {
+                Some(f) => f,
+                None => {
+                    refit(twin, p, o, &sp, &cands[ci].params.iter().map(|f| f.value).collect::<Vec<_>>())?
+                }
+            };
             // The drift is measured from where the model stood, not from the linear guess.
             let current: Vec<f64> = cands[ci].params.iter().map(|f| f.start).collect();
             let spread = parameter_std(p, &fit, &sp, &current, twin.dt_s());

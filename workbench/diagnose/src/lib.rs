@@ -13,6 +13,7 @@ pub mod twin;
 mod alias;
 mod confounding;
 mod constancy;
+mod dynamics;
 mod locate;
 mod preparation;
 mod refit;
