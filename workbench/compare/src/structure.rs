@@ -62,6 +62,8 @@ pub struct Window {
     pub dof: usize,
     /// Probability that noise alone gives `chi2` or more.
     pub p: f64,
+    /// `ln p`, which orders windows whose `p` underflows to 0.
+    pub log_p: f64,
     /// Mean residual over the window [the channel's unit].
     pub mean: f64,
     /// Mean squared residual over the window in units of the noise's σ² (or of the
@@ -181,12 +183,14 @@ fn window(blocks: &[Option<f64>], r: &[f64], start: usize, block_sigma: f64, flo
         r.iter().filter(|v| v.is_finite()).fold((0.0, 0usize), |(s, c), v| (s + v * v, c + 1));
     let energy_ratio = sum2 / (count.max(1) as f64 * floor * floor).max(f64::MIN_POSITIVE);
     let even = vals.len() & !1;
+    let log_p = chi2_log_sf_even(chi2 * even as f64 / vals.len() as f64, even.max(2));
     Some(Window {
         start,
         len: r.len(),
         chi2,
         dof: vals.len(),
-        p: chi2_sf_even(chi2 * even as f64 / vals.len() as f64, even.max(2)),
+        p: log_p.exp(),
+        log_p,
         mean,
         energy_ratio,
         material: energy_ratio >= MATERIAL,
@@ -222,7 +226,7 @@ fn mains_line(r: &[f64], dt: f64, f0: f64, noise: f64) -> Option<Window> {
     }
     let ratio = peak / floor;
     // The largest of `search.len()` exponentials exceeds `ratio` with at most this chance.
-    let p = (search.len() as f64 * (-ratio).exp()).min(1.0);
+    let log_p = ((search.len() as f64).ln() - ratio).min(0.0);
     // Periodogram of a line of amplitude A: N A²/4 over the floor.
     let amp2 = (4.0 * (peak - floor) / used as f64).max(0.0);
     let rest = (noise * noise - 0.5 * amp2).max(f64::MIN_POSITIVE);
@@ -232,7 +236,8 @@ fn mains_line(r: &[f64], dt: f64, f0: f64, noise: f64) -> Option<Window> {
         len: n,
         chi2: 2.0 * ratio,
         dof: 2,
-        p,
+        p: log_p.exp(),
+        log_p,
         mean: amp2.sqrt(),
         energy_ratio,
         material: energy_ratio >= MATERIAL,
@@ -477,8 +482,14 @@ pub fn threshold(tested: usize) -> f64 {
 /// Survival function of χ² with an even number `dof` of degrees of freedom (exact:
 /// `e^{-x/2} Σ_{i<dof/2} (x/2)^i / i!`).
 pub fn chi2_sf_even(x: f64, dof: usize) -> f64 {
+    chi2_log_sf_even(x, dof).exp()
+}
+
+/// The natural log of [`chi2_sf_even`], finite where the p-value itself underflows (two
+/// windows far beyond 1e-300 are still ordered by how far).
+pub fn chi2_log_sf_even(x: f64, dof: usize) -> f64 {
     if x.is_nan() || x <= 0.0 {
-        return 1.0;
+        return 0.0;
     }
     let h = x / 2.0;
     let mut term = 1.0;
@@ -488,7 +499,7 @@ pub fn chi2_sf_even(x: f64, dof: usize) -> f64 {
         sum += term;
     }
     // In logs: e^{-h} underflows long before the sum overflows.
-    (sum.ln() - h).exp().min(1.0)
+    (sum.ln() - h).min(0.0)
 }
 
 #[cfg(test)]
@@ -528,6 +539,15 @@ mod tests {
             flagged += usize::from(w.flagged(th).count() > 0);
         }
         assert!(flagged <= 2, "{flagged} of 40 noise-only runs flagged");
+    }
+
+    /// Far beyond underflow the log survival keeps its order and its value.
+    #[test]
+    fn the_log_p_value_orders_windows_beyond_underflow() {
+        let (a, b) = (chi2_log_sf_even(2000.0, 8), chi2_log_sf_even(4000.0, 8));
+        assert_eq!((a.exp(), b.exp()), (0.0, 0.0));
+        assert!(b < a && a < -900.0 && b.is_finite(), "{a} {b}");
+        assert!((chi2_log_sf_even(20.09, 8) - 0.01f64.ln()).abs() < 0.02);
     }
 
     fn with_line(mut r: Vec<f64>, dt: f64, f: f64, amp: f64) -> Vec<f64> {

@@ -292,7 +292,7 @@ pub(super) fn structure_in(
     let th = structure::threshold(tested);
     let flagged: Vec<(usize, &structure::Window)> =
         per_channel.iter().enumerate().flat_map(|(c, w)| w.flagged(th).map(move |x| (c, x))).collect();
-    let (c, w) = flagged.iter().min_by(|a, b| a.1.p.total_cmp(&b.1.p))?;
+    let (c, w) = flagged.iter().min_by(|a, b| a.1.log_p.total_cmp(&b.1.log_p))?;
     Some(Structure {
         channel: channels[*c].name(),
         window_s: (w.start as f64 * dt, (w.start + w.len) as f64 * dt),
@@ -781,6 +781,30 @@ mod tests {
             drift: None,
             map_alias: None,
         }
+    }
+
+    /// Two channels whose structure is far beyond p = 1e-300 (both p-values underflow to
+    /// 0): the location is the stronger of the two (a 10 σ offset over 20 s on I_DC), not
+    /// the first channel's (a 5 σ dip of 2 s on V_DC), which a tie on p used to pick.
+    #[test]
+    fn the_location_is_the_strongest_structure_beyond_underflow() {
+        let (n, dt) = (6_000, 0.01);
+        let channels = [Channel::VDc, Channel::IDc];
+        let (nv, ni) = (gaussian(63, n), gaussian(64, n));
+        let step = |k: usize, span: std::ops::Range<usize>, by: f64| if span.contains(&k) { by } else { 0.0 };
+        let meas: Vec<Vec<f64>> = vec![
+            (0..n).map(|k| 24.0 + step(k, 2_000..2_200, -0.05) + 0.01 * nv[k]).collect(),
+            (0..n).map(|k| 100.0 + step(k, 3_000..5_000, 1.0) + 0.1 * ni[k]).collect(),
+        ];
+        let sim = vec![vec![24.0f32; n], vec![100.0f32; n]];
+        let p = Prepared::single_run(meas, vec![("V_DC", 0.01), ("I_DC", 0.1)], sim);
+        let weakest_p = |c: usize| {
+            let r: Vec<f64> = p.meas[c].iter().zip(&p.base_sim[c]).map(|(a, b)| f64::from(*b) - a).collect();
+            structure::time_windows(&r, dt, 0.0).windows.iter().map(|w| w.p).fold(1.0, f64::min)
+        };
+        assert_eq!((weakest_p(0), weakest_p(1)), (0.0, 0.0), "both underflow");
+        let st = structure_in(&p, &channels, &[0.0; 2], dt, &p.base_sim).expect("structure is flagged");
+        assert_eq!(st.channel, "I_DC", "located on {} at {:?}", st.channel, st.window_s);
     }
 
     /// A cause whose error is confined to 2 s of a 60 s run (0.6 σ on one channel) removes

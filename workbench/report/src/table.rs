@@ -80,7 +80,7 @@ fn local_structure(o: &mut String, r: &CompareResult) {
     for c in r.channels.iter().filter(|c| !c.structure.is_empty()) {
         let dt = r.setup.dt_us as f64 * 1e-6;
         let mut w: Vec<&structure::Window> = c.structure.iter().collect();
-        w.sort_by(|a, b| a.p.total_cmp(&b.p));
+        w.sort_by(|a, b| a.log_p.total_cmp(&b.log_p));
         let shown: Vec<String> = w
             .iter()
             .take(3)
