@@ -21,7 +21,7 @@ use simrod_io::datadir::ModelData;
 
 use super::empirical::{map_files, reshaped, Shift};
 use super::engine::{Candidate, MapAlias, MapShape, Options, Twin, MOVES_SHARE};
-use super::preparation::{run_each, Prepared};
+use super::preparation::{run_each, Prepared, Weights};
 use super::sensitivities::Sensitivities;
 
 /// Share of a sensor cause's removed error (its refit, on the simulator; a set member's
@@ -193,9 +193,12 @@ fn response(p: &Prepared, sim0: &[Vec<f32>], out: &[Vec<f32>]) -> Vec<Vec<f64>> 
 /// The weighted error one shape with response `j` removes from `r` at its best value,
 /// and that value (in units of the shape); `None` when it does not move `channel` (at
 /// least [`MOVES_SHARE`] of its weighted response) or moves nothing.
-fn one_shape(j: &[Vec<f64>], r: &[Vec<f64>], w: &[f64], channel: usize) -> Option<(f64, f64)> {
-    let per_channel: Vec<f64> =
-        j.iter().zip(w).map(|(jc, wc)| wc * jc.iter().map(|v| v * v).sum::<f64>()).collect();
+fn one_shape(j: &[Vec<f64>], r: &[Vec<f64>], w: &Weights, channel: usize) -> Option<(f64, f64)> {
+    let per_channel: Vec<f64> = j
+        .iter()
+        .enumerate()
+        .map(|(c, jc)| jc.iter().enumerate().map(|(t, v)| w.at(c, t) * v * v).sum::<f64>())
+        .collect();
     let g: f64 = per_channel.iter().sum();
     if g.is_nan() || g <= 0.0 || per_channel.get(channel).copied().unwrap_or(0.0) < MOVES_SHARE * g {
         return None;
@@ -203,8 +206,8 @@ fn one_shape(j: &[Vec<f64>], r: &[Vec<f64>], w: &[f64], channel: usize) -> Optio
     let b: f64 = j
         .iter()
         .zip(r)
-        .zip(w)
-        .map(|((jc, rc), wc)| wc * jc.iter().zip(rc).map(|(a, e)| a * e).sum::<f64>())
+        .enumerate()
+        .map(|(c, (jc, rc))| jc.iter().zip(rc).enumerate().map(|(t, (a, e))| w.at(c, t) * a * e).sum::<f64>())
         .sum();
     Some((b * b / g, b / g))
 }
@@ -219,7 +222,7 @@ mod tests {
     #[test]
     fn one_shape_fits_the_channel_it_moves() {
         let r = vec![vec![2.0, -4.0, 6.0], vec![0.0; 3]];
-        let w = [1.0, 1.0];
+        let w = Weights::uniform([1.0, 1.0]);
         let j = vec![vec![1.0, -2.0, 3.0], vec![0.0; 3]];
         let (removed, theta) = one_shape(&j, &r, &w, 0).expect("it moves channel 0");
         assert!((theta - 2.0).abs() < 1e-12 && (removed - 56.0).abs() < 1e-9, "{removed} {theta}");

@@ -203,7 +203,7 @@ mod tests {
     fn prepared(meas: Vec<Vec<f64>>, runs: usize) -> Prepared {
         let n = meas[0].len();
         Prepared {
-            weights: vec![1e4; meas.len()],
+            weights: crate::preparation::Weights::uniform(vec![1e4; meas.len()]),
             noise: vec![("C_Kistler_L", 0.01); meas.len()],
             idx: (0..n).collect(),
             stride: 1,

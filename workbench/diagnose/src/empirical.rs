@@ -378,13 +378,13 @@ struct Normal {
 }
 
 /// Responses `[column][channel][sample]` (sample: position in `rows`) against the
-/// residual `r[channel][sample]`, weights per channel, folds per sample.
-fn normal(cols: &[&Vec<Vec<f64>>], r: &[Vec<f64>], w: &[f64], folds: &[usize], nf: usize) -> Normal {
+/// residual `r[channel][sample]`, weights `w[channel][sample]`, folds per sample.
+fn normal(cols: &[&Vec<Vec<f64>>], r: &[Vec<f64>], w: &[Vec<f64>], folds: &[usize], nf: usize) -> Normal {
     let n = cols.len();
     let (mut gf, mut bf) = (vec![vec![0.0; n * n]; nf], vec![vec![0.0; n]; nf]);
     let mut a = vec![0.0; n];
     for (c, (rc, wc)) in r.iter().zip(w).enumerate() {
-        for (t, (rt, f)) in rc.iter().zip(folds).enumerate() {
+        for (t, ((rt, f), wc)) in rc.iter().zip(folds).zip(wc).enumerate() {
             for (aj, col) in a.iter_mut().zip(cols) {
                 *aj = col[c][t];
             }
@@ -561,6 +561,8 @@ struct Basis {
     /// ([`before_corrections`]); `None` when no map was corrected.
     sim_before: Option<Vec<Vec<f32>>>,
     r: Vec<Vec<f64>>,
+    /// The weights `[channel][row]` ([`Prepared::weights`] on the rows).
+    w: Vec<Vec<f64>>,
     /// Weighted error energy, and its excess over noise.
     energy: f64,
     excess: f64,
@@ -576,8 +578,8 @@ impl Basis {
     }
 
     /// The normal equations of `cols` against the residual, per fold.
-    fn normal(&self, cols: &[&Vec<Vec<f64>>], w: &[f64]) -> Normal {
-        normal(cols, &self.r, w, &self.folds, FOLDS)
+    fn normal(&self, cols: &[&Vec<Vec<f64>>]) -> Normal {
+        normal(cols, &self.r, &self.w, &self.folds, FOLDS)
     }
 }
 
@@ -595,7 +597,9 @@ pub(super) fn correct(inp: &Inputs) -> Option<Empirical> {
         .zip(&sim0)
         .map(|(m, s)| rows.iter().map(|&t| m[t] - f64::from(s[t])).collect())
         .collect();
-    let energy: f64 = r.iter().zip(&p.weights).map(|(rc, w)| w * rc.iter().map(|v| v * v).sum::<f64>()).sum();
+    let w: Vec<Vec<f64>> = (0..r.len()).map(|c| rows.iter().map(|&t| p.weights.at(c, t)).collect()).collect();
+    let energy: f64 =
+        r.iter().zip(&w).map(|(rc, wc)| rc.iter().zip(wc).map(|(v, x)| x * v * v).sum::<f64>()).sum();
     let excess = energy - (rows.len() * r.len()) as f64;
     if excess <= 0.0 {
         return None;
@@ -603,7 +607,7 @@ pub(super) fn correct(inp: &Inputs) -> Option<Empirical> {
     let folds = blocks(&rows, p.stride, twin.dt_s());
     let sim_before =
         before_corrections(&base).and_then(|d| twin.run_data(&Arc::new(d), &inp.fx, p.stride).ok());
-    let b = Basis { rows, folds, sim0, sim_before, r, energy, excess };
+    let b = Basis { rows, folds, sim0, sim_before, r, w, energy, excess };
     let maps = candidates(&base, &twin.set_points());
     let chosen = screen(inp, &base, &maps, &b);
     if chosen.is_empty() {
@@ -625,7 +629,7 @@ pub(super) fn correct(inp: &Inputs) -> Option<Empirical> {
     }
     let mut maps = maps;
     for (slot, &m) in chosen.iter().enumerate() {
-        keep_moving(&mut maps[m], &mut cols[slot], &p.weights);
+        keep_moving(&mut maps[m], &mut cols[slot], &b.w);
     }
     let screened: Vec<&MapNodes> = chosen.iter().map(|&m| &maps[m]).collect();
     select(inp, &base, &screened, &cols, &b)
@@ -653,10 +657,10 @@ fn blocks(rows: &[usize], stride: usize, dt: f64) -> Vec<usize> {
 const MOVES_NODE: f64 = 1e-4;
 
 /// Drop the nodes of `m` whose response (`cols`, in the same order) the runs hardly see.
-fn keep_moving(m: &mut MapNodes, cols: &mut Vec<Vec<Vec<f64>>>, w: &[f64]) {
+fn keep_moving(m: &mut MapNodes, cols: &mut Vec<Vec<Vec<f64>>>, w: &[Vec<f64>]) {
     let energy: Vec<f64> = cols
         .iter()
-        .map(|c| c.iter().zip(w).map(|(ch, wc)| wc * ch.iter().map(|v| v * v).sum::<f64>()).sum())
+        .map(|c| c.iter().zip(w).map(|(ch, wc)| ch.iter().zip(wc).map(|(v, x)| x * v * v).sum::<f64>()).sum())
         .collect();
     let top = energy.iter().fold(0.0f64, |a, e| a.max(*e));
     let keep: Vec<bool> = energy.iter().map(|e| top > 0.0 && *e >= MOVES_NODE * top).collect();
@@ -705,7 +709,7 @@ fn screen(inp: &Inputs, base: &ModelData, maps: &[MapNodes], b: &Basis) -> Vec<u
         // One node has no tilt (its "tilt" is the shift reversed).
         let shapes = if maps[m].nodes.len() == 1 { 1 } else { 2 };
         let refs: Vec<&Vec<Vec<f64>>> = cols.iter().take(shapes).collect();
-        let nm = b.normal(&refs, &inp.p.weights);
+        let nm = b.normal(&refs);
         let Some(th) = solve_spd(&nm.g, &nm.b, 1e-9) else { continue };
         let removed: f64 = th.iter().zip(&nm.b).map(|(x, y)| x * y).sum();
         if removed >= SCREEN_SHARE * b.excess {
@@ -752,12 +756,11 @@ fn select(
     cols: &[Vec<Vec<Vec<f64>>>],
     b: &Basis,
 ) -> Option<Empirical> {
-    let w = &inp.p.weights;
     let excess = b.excess;
     let fit_of = |set: &[usize]| {
         let refs: Vec<&Vec<Vec<f64>>> = set.iter().flat_map(|&s| cols[s].iter()).collect();
         let mn: Vec<&MapNodes> = set.iter().map(|&s| maps[s]).collect();
-        let nm = b.normal(&refs, w);
+        let nm = b.normal(&refs);
         let pm = roughness(&mn, base);
         let limit: Vec<f64> = mn.iter().flat_map(|m| m.nodes.iter().map(|_| m.limit)).collect();
         let (heldout, lambda, theta) = best_lambda(&nm, &pm, &limit);
@@ -879,7 +882,7 @@ fn confirm(
     f: &TableFit,
     alpha: f64,
 ) -> Option<Step> {
-    let (p, w, rows, excess, sim0) = (inp.p, &inp.p.weights, &b.rows, b.excess, &b.sim0);
+    let (p, rows, excess, sim0) = (inp.p, &b.rows, b.excess, &b.sim0);
     let theta: Vec<f64> = f.theta.iter().map(|t| alpha * t).collect();
     let nm = &f.nm;
     let (held, _) = heldout_damped(nm, &f.roughness, f.lambda * diag_mean(nm).max(1e-300), alpha);
@@ -901,7 +904,7 @@ fn confirm(
             .map(|t| before[t] + refs.iter().zip(&theta).map(|(col, th)| col[c][t] * th).sum::<f64>())
             .collect();
         let (rb, ra) = (rmse(&meas, &before, &all), rmse(&meas, &now, &all));
-        e_after += w[c] * ra * ra * rows.len() as f64;
+        e_after += meas.iter().zip(&now).zip(&b.w[c]).map(|((m, s), w)| w * (m - s).powi(2)).sum::<f64>();
         if ra > WORSE * rb && worse.is_none() && !inp.against_current {
             worse = Some(format!("it would make {} worse ({:.3} -> {:.3})", name.name(), rb, ra));
         }
@@ -1144,7 +1147,7 @@ mod tests {
         let r: Vec<f64> = (0..len).map(|t| (t % n) as f64 + if t % 2 == 0 { 0.3 } else { -0.3 }).collect();
         let folds: Vec<usize> = (0..len).map(|t| t * 2 / len).collect();
         let refs: Vec<&Vec<Vec<f64>>> = cols.iter().collect();
-        let nm = normal(&refs, &[r], &[1.0], &folds, 2);
+        let nm = normal(&refs, &[r], &[vec![1.0; len]], &folds, 2);
         let p = vec![1.0, -2.0, 1.0, -2.0, 4.0, -2.0, 1.0, -2.0, 1.0];
         let (held, _, th) = best_lambda(&nm, &p, &[10.0; 3]);
         assert!(held > 0.0, "{held}");

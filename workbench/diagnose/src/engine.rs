@@ -4,7 +4,8 @@
 //! 1. [`preparation`](super::preparation): the current model's residual and each
 //!    channel's noise level, estimated from the residual minus its 0.25 s moving average
 //!    (model errors are slow, measurement noise — even coloured by an encoder's counting
-//!    window — is fast), so every channel enters the fit weighted by `1/σ²`.
+//!    window — is fast), so every channel enters the fit weighted by `1/σ²`; in a
+//!    campaign, each run's samples by that run's own σ.
 //! 2. [`sensitivities`](super::sensitivities): every measured channel's response to every
 //!    library parameter (one simulation per parameter, in parallel).
 //! 3. [`selection`](super::selection): score test and greedy orthogonal forward
@@ -411,7 +412,7 @@ fn stages(
     let ranking = rank(&cands);
     let base_structure = structure(&p.base_sim);
     let group = Leaders { cands: &cands, lin: &lin, fits: &fits, ranking: &ranking };
-    let confounded = confounded_groups(&group, &s, o, &p.weights, probe);
+    let confounded = confounded_groups(&group, &s, o, &p.weights.means(p.idx.len()), probe);
     let ev = Evidence {
         p: &p,
         s: &s,

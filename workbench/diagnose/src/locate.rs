@@ -14,9 +14,11 @@ const FOLLOWS_MIN: f64 = 0.3;
 /// The operating region holding the largest share of channel `c`'s excess error (over
 /// the noise) in `sim`: (name, share of the excess, share of the samples).
 pub(super) fn region(p: &Prepared, c: usize, sim: &[Vec<f32>]) -> Option<(String, f64, f64)> {
-    let w = p.weights[c];
-    let excess: Vec<f64> =
-        p.idx.iter().map(|&t| w * (p.meas[c][t] - f64::from(sim[c][t])).powi(2) - 1.0).collect();
+    let excess: Vec<f64> = p
+        .idx
+        .iter()
+        .map(|&t| p.weights.at(c, t) * (p.meas[c][t] - f64::from(sim[c][t])).powi(2) - 1.0)
+        .collect();
     let total: f64 = excess.iter().sum();
     if total <= 0.0 || p.regions.is_empty() {
         return None;

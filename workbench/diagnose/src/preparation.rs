@@ -24,8 +24,8 @@ pub(super) struct Prepared {
     pub base: Vec<Vec<f64>>,
     /// [`Options::regions`] on the fit samples.
     pub regions: Vec<(String, Vec<bool>)>,
-    /// `1/σ²` per channel.
-    pub weights: Vec<f64>,
+    /// `1/σ²` per channel and fit sample ([`Weights`]).
+    pub weights: Weights,
     /// Estimated noise σ per channel, by name.
     pub noise: Vec<(&'static str, f64)>,
     /// The powers the bench derives from the fitted channels: a change of the model
@@ -56,6 +56,49 @@ pub(super) struct Prepared {
     pub excess_ratio: f64,
 }
 
+/// Each channel's weight `1/σ²` on each fit sample, from the noise level of the run the
+/// sample belongs to. A campaign's runs differ in noise up to sixfold (the bench's grows
+/// at its operating limits); one level pooled over the campaign let a loud run's fast
+/// errors hide a quiet run's whole error (a 0.46 N m residual on a run with 0.30 N m of
+/// noise, weighed against a pooled 1.06 N m).
+#[derive(Default, Clone)]
+pub(super) struct Weights {
+    /// `[channel][run]`, at least one run per channel.
+    per_run: Vec<Vec<f64>>,
+    /// The run of each fit sample (empty: every sample in run 0).
+    run_of: Vec<usize>,
+}
+
+impl Weights {
+    /// The weight of channel `c` at fit sample `t`.
+    pub fn at(&self, c: usize, t: usize) -> f64 {
+        let w = &self.per_run[c];
+        w[self.run_of.get(t).copied().unwrap_or(0).min(w.len() - 1)]
+    }
+
+    /// The number of channels.
+    pub fn channels(&self) -> usize {
+        self.per_run.len()
+    }
+
+    /// Channel `c`'s mean weight over `n` fit samples: what a per-channel summary
+    /// (a predicted RMSE) divides by.
+    pub fn mean(&self, c: usize, n: usize) -> f64 {
+        (0..n).map(|t| self.at(c, t)).sum::<f64>() / n.max(1) as f64
+    }
+
+    /// Each channel's mean weight over `n` fit samples (for a run that is not the
+    /// measurement's: a profile simulated to separate two causes).
+    pub fn means(&self, n: usize) -> Vec<f64> {
+        (0..self.channels()).map(|c| self.mean(c, n)).collect()
+    }
+
+    /// One weight per channel on every sample (a single run).
+    pub fn uniform(w: impl IntoIterator<Item = f64>) -> Self {
+        Self { per_run: w.into_iter().map(|x| vec![x]).collect(), run_of: Vec::new() }
+    }
+}
+
 /// Check the shapes, run the current model and weigh every channel by its noise.
 pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result<Prepared, String> {
     let channels = twin.channels();
@@ -84,8 +127,8 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         .zip(channels)
         .map(|((m, s), c)| (c.name(), channel_sigma(m, s, h)))
         .collect();
-    let weights = noise.iter().map(|(_, s)| 1.0 / (s * s)).collect();
     let segments = twin.segments();
+    let weights = run_weights(meas, &base_sim, &noise, &segments, stride, h);
     let lines = mains_lines(meas, &base_sim, &twin.resolution(), &segments, twin.dt_s(), stride);
     let base_sim: Vec<Vec<f32>> = base_sim.into_iter().map(|c| every(c, stride)).collect();
     let meas: Vec<Vec<f64>> = meas.iter().map(|m| every(m.clone(), stride)).collect();
@@ -181,6 +224,44 @@ fn channel_sigma(m: &[f64], s: &[f32], h: usize) -> f64 {
     weighting_sigma(&r, h).max(1e-4 * rms).max(1e-9)
 }
 
+/// The [`Weights`] of a campaign of runs of `segments` samples each (one run: the
+/// channel's `noise`), thinned to every `stride`-th sample. A run too short for its own
+/// estimate takes the campaign's.
+fn run_weights(
+    meas: &[Vec<f64>],
+    sim: &[Vec<f32>],
+    noise: &[(&'static str, f64)],
+    segments: &[usize],
+    stride: usize,
+    h: usize,
+) -> Weights {
+    let pooled = |c: usize| 1.0 / noise[c].1.powi(2);
+    if segments.len() < 2 {
+        return Weights::uniform((0..meas.len()).map(pooled));
+    }
+    let per_run = (0..meas.len())
+        .map(|c| {
+            let mut from = 0;
+            segments
+                .iter()
+                .map(|len| {
+                    let to = (from + len).min(meas[c].len());
+                    let r: Vec<f64> = (from..to).map(|t| meas[c][t] - f64::from(sim[c][t])).collect();
+                    from = to;
+                    let s = weighting_sigma(&r, h);
+                    if s > 0.0 && s.is_finite() {
+                        1.0 / s.max(noise[c].1 * 1e-3).powi(2)
+                    } else {
+                        pooled(c)
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let n = meas.first().map_or(0, |m| m.len().div_ceil(stride));
+    Weights { per_run, run_of: folds(segments, stride, n) }
+}
+
 /// A power the bench derives ([`simrod_twin::POWERS`]) from fitted channels, at their
 /// positions, with the weight `1/σ²` its inputs' noise gives it.
 pub(super) struct DerivedPower {
@@ -261,10 +342,10 @@ pub(super) fn run_each<J: Sync>(
 /// Weighted squared error of `sim` against the measurement on the fit samples.
 pub(super) fn energy(p: &Prepared, sim: &[Vec<f32>]) -> f64 {
     let mut e = 0.0;
-    for ((m, s), w) in p.meas.iter().zip(sim).zip(&p.weights) {
+    for (c, (m, s)) in p.meas.iter().zip(sim).enumerate() {
         for &t in &p.idx {
             let r = m[t] - f64::from(s[t]);
-            e += w * r * r;
+            e += p.weights.at(c, t) * r * r;
         }
     }
     e
@@ -281,7 +362,7 @@ impl Prepared {
     ) -> Self {
         let n = meas.first().map_or(0, Vec::len);
         let mut p = Prepared {
-            weights: noise.iter().map(|(_, s)| 1.0 / (s * s)).collect(),
+            weights: Weights::uniform(noise.iter().map(|(_, s)| 1.0 / (s * s))),
             e_noise: (n * meas.len()) as f64,
             meas,
             base_sim,
@@ -304,8 +385,8 @@ pub(super) fn channel_energies(p: &Prepared, sim: &[Vec<f32>]) -> Vec<f64> {
     p.meas
         .iter()
         .zip(sim)
-        .zip(&p.weights)
-        .map(|((m, s), w)| p.idx.iter().map(|&t| w * (m[t] - f64::from(s[t])).powi(2)).sum())
+        .enumerate()
+        .map(|(c, (m, s))| p.idx.iter().map(|&t| p.weights.at(c, t) * (m[t] - f64::from(s[t])).powi(2)).sum())
         .collect()
 }
 
@@ -319,8 +400,8 @@ pub(super) const WORSE: f64 = 1.10;
 /// The channels are the fitted ones, then the powers the bench derives from them: a
 /// change that moves a voltage and a current a little each can make their product
 /// worse although neither is.
-/// Not "above the noise": a channel's noise level is estimated over the whole campaign,
-/// and one run's fast errors can raise it above another run's whole error.
+/// Not "above the noise": a run's noise level is estimated from the fast part of its
+/// residual, which fast model errors can raise above the run's whole error.
 pub(super) fn worse_somewhere(
     p: &Prepared,
     before: &[Vec<f32>],
@@ -330,12 +411,12 @@ pub(super) fn worse_somewhere(
 ) -> Option<(&'static str, usize, f64)> {
     let nf = p.runs.max(1);
     let run = |t: usize| if nf > 1 { p.folds.get(t).copied().unwrap_or(0).min(nf - 1) } else { 0 };
-    let worse = |w: f64, err: &dyn Fn(&[Vec<f32>], usize) -> f64| {
+    let worse = |w: &dyn Fn(usize) -> f64, err: &dyn Fn(&[Vec<f32>], usize) -> f64| {
         let (mut e0, mut e1, mut n) = (vec![0.0; nf], vec![0.0; nf], vec![0usize; nf]);
         for &t in rows {
             let f = run(t);
-            e0[f] += w * err(before, t).powi(2);
-            e1[f] += w * err(after, t).powi(2);
+            e0[f] += w(t) * err(before, t).powi(2);
+            e1[f] += w(t) * err(after, t).powi(2);
             n[f] += 1;
         }
         (0..nf)
@@ -346,11 +427,11 @@ pub(super) fn worse_somewhere(
     };
     let fitted = (0..p.meas.len()).find_map(|c| {
         let (name, _) = p.noise[c];
-        worse(p.weights[c], &|s, t| p.meas[c][t] - f64::from(s[c][t])).map(|(f, k)| (name, f, k))
+        worse(&|t| p.weights.at(c, t), &|s, t| p.meas[c][t] - f64::from(s[c][t])).map(|(f, k)| (name, f, k))
     });
     fitted.or_else(|| {
         p.powers.iter().find_map(|pw| {
-            worse(pw.weight, &|s, t| pw.at(&p.meas, t) - pw.at(s, t))
+            worse(&|_| pw.weight, &|s, t| pw.at(&p.meas, t) - pw.at(s, t))
                 .map(|(f, k)| (pw.power.channel.name(), f, k))
         })
     })
@@ -378,13 +459,13 @@ pub(super) fn region_errors(
                     continue;
                 }
                 count += 1;
-                for (c, w) in p.weights.iter().enumerate() {
-                    let r = p.meas[c][t] - p.base[c][t];
+                for c in 0..p.weights.channels() {
+                    let (w, r) = (p.weights.at(c, t), p.meas[c][t] - p.base[c][t]);
                     before += w * r * r;
                     after += w * (r - delta(c, k)).powi(2);
                 }
             }
-            let per = (count * p.weights.len()).max(1) as f64;
+            let per = (count * p.weights.channels()).max(1) as f64;
             RegionChange {
                 region: name.clone(),
                 samples: count as f64 / m,
@@ -405,6 +486,24 @@ pub(super) mod tests {
         // Runs of 10 and 6 samples, every 2nd sample: 0,2,..,8 in run 1; 10,12,14 in run 2.
         assert_eq!(super::folds(&[10, 6], 2, 8), [0, 0, 0, 0, 0, 1, 1, 1]);
         assert_eq!(super::folds(&[100], 1, 10), [0, 0, 1, 1, 2, 2, 3, 3, 4, 4]);
+    }
+
+    /// A campaign of a quiet run (σ 0.3) and a loud one (σ 1.2): each run's samples are
+    /// weighed by its own noise (16x apart), not by one level for both; a single run
+    /// keeps the channel's.
+    #[test]
+    fn each_run_is_weighed_by_its_own_noise() {
+        let (a, b) = (gaussian(71, 4_000), gaussian(72, 6_000));
+        let meas = vec![a.iter().map(|v| 0.3 * v).chain(b.iter().map(|v| 1.2 * v)).collect::<Vec<f64>>()];
+        let sim = vec![vec![0.0f32; 10_000]];
+        let w = super::run_weights(&meas, &sim, &[("C_Kistler_L", 0.9)], &[4_000, 6_000], 2, 125);
+        let (quiet, loud) = (w.at(0, 0), w.at(0, 4_999));
+        assert!((quiet / (1.0 / 0.09) - 1.0).abs() < 0.05, "quiet run weight {quiet}");
+        assert!((loud / (1.0 / 1.44) - 1.0).abs() < 0.05, "loud run weight {loud}");
+        assert_eq!(w.at(0, 1_999), quiet, "fit sample 1999 is raw sample 3998, the first run");
+        assert_eq!(w.at(0, 2_000), loud, "fit sample 2000 is raw sample 4000, the second run");
+        let one = super::run_weights(&meas, &sim, &[("C_Kistler_L", 0.9)], &[10_000], 2, 125);
+        assert_eq!((one.at(0, 0), one.at(0, 4_999)), (1.0 / 0.81, 1.0 / 0.81));
     }
 
     /// A change that moves the inverter's voltage and current 1.05x each (under the

@@ -167,9 +167,9 @@ fn normal_equations(p: &Prepared, jac: &[Vec<Vec<f64>>], sim: &[Vec<f32>]) -> (V
     let n = jac.len();
     let mut g = vec![0.0; n * n];
     let mut b = vec![0.0; n];
-    for (c, w) in p.weights.iter().enumerate() {
+    for c in 0..p.weights.channels() {
         for (k, &t) in p.idx.iter().enumerate() {
-            let r = p.meas[c][t] - f64::from(sim[c][t]);
+            let (w, r) = (p.weights.at(c, t), p.meas[c][t] - f64::from(sim[c][t]));
             for i in 0..n {
                 let ji = jac[i][c][k];
                 b[i] += w * ji * r;
@@ -333,7 +333,7 @@ mod tests {
             meas,
             base: vec![vec![0.0; n]],
             base_sim,
-            weights: vec![1.0],
+            weights: crate::preparation::Weights::uniform([1.0]),
             noise: vec![("Throttle", 1.0)],
             idx: (0..n).collect(),
             stride: 1,

@@ -142,7 +142,7 @@ fn channel_changes(
             let bs: Vec<f64> = ix.iter().map(|&i| s.bc[c][i]).collect();
             let red_c = 2.0 * th.iter().zip(&bs).map(|(a, x)| a * x).sum::<f64>() - quad(&gs, th);
             let before = rmse(&p.meas[c], &p.base[c], &p.idx);
-            let after2 = (before * before - red_c / p.weights[c] / m).max(0.0);
+            let after2 = (before * before - red_c / p.weights.mean(c, p.idx.len()) / m).max(0.0);
             ChannelChange {
                 channel: ch.name(),
                 rmse_before: before,

@@ -6,7 +6,7 @@ use model_core::{Channel, Effects};
 
 use super::engine::{Options, Twin};
 use super::library::{current_value, library, with_values, ParamSpec};
-use super::preparation::{channel_energies, run_all, Prepared};
+use super::preparation::{channel_energies, run_all, Prepared, Weights};
 
 /// The library's parameters and the linearised model around the current one.
 pub(super) struct Sensitivities {
@@ -116,7 +116,7 @@ pub(super) fn check_shape(p: &Prepared, y: &[Vec<f32>]) -> Result<(), String> {
 
 /// Per channel `c`: `J_c' w_c J_c` (symmetric, full) and `J_c' w_c r_c`.
 fn channel_normal_equations(p: &Prepared, sens: &[Vec<Vec<f64>>]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
-    normal_equations_by(&p.weights, sens, |c, k| base_residual(p, c, k), p.weights.len(), |c, _| c)
+    normal_equations_by(&p.weights, sens, |c, k| base_residual(p, c, k), p.weights.channels(), |c, _| c)
 }
 
 /// Per held-out fold: `J'WJ` (full) and `J'W r` over all channels.
@@ -138,11 +138,11 @@ fn base_residual(p: &Prepared, c: usize, k: usize) -> f64 {
 }
 
 /// `J'WJ` (symmetric, full) and `J'W r` summed into `n` parts, the term of channel `c`
-/// at fit sample `k` going to part `part(c, k)`: `weights[c]` is channel `c`'s `1/σ²`,
+/// at fit sample `k` going to part `part(c, k)`: `weights` are each channel's `1/σ²`,
 /// `jac[i][c][k]` the Jacobian, `resid(c, k)` the residual. Shared by the linearised
 /// fits (on the sensitivities) and the fold jackknife (on a refit's Jacobian).
 pub(super) fn normal_equations_by(
-    weights: &[f64],
+    weights: &Weights,
     jac: &[Vec<Vec<f64>>],
     resid: impl Fn(usize, usize) -> f64,
     n: usize,
@@ -151,12 +151,12 @@ pub(super) fn normal_equations_by(
     let np = jac.len();
     let mut g = vec![vec![0.0; np * np]; n];
     let mut b = vec![vec![0.0; np]; n];
-    for (c, w) in weights.iter().enumerate() {
+    for c in 0..weights.channels() {
         let samples = jac.first().map_or(0, |j| j[c].len());
         #[allow(clippy::needless_range_loop)] // k indexes every parameter's column alike
         for k in 0..samples {
             let q = part(c, k).min(n - 1);
-            let r = resid(c, k);
+            let (w, r) = (weights.at(c, k), resid(c, k));
             for i in 0..np {
                 let si = jac[i][c][k];
                 if si == 0.0 {

@@ -24,7 +24,7 @@
 use super::constancy::{drift, Drift};
 use super::library::ParamSpec;
 use super::linalg::{quad, solve_spd};
-use super::preparation::Prepared;
+use super::preparation::{Prepared, Weights};
 use super::refit::Fit;
 use super::sensitivities::normal_equations_by;
 use simrod_numerics::stats::moving_mean;
@@ -124,7 +124,7 @@ const JACKKNIFE_MIN_INFO: f64 = 0.5;
 /// over 1.96, so that ±1.96 σ is the jackknife's 95 % interval. `None` with fewer than
 /// three folds that can be left out.
 pub(super) fn fold_jackknife_std(
-    weights: &[f64],
+    weights: &Weights,
     resid: &[Vec<f64>],
     jac: &[Vec<Vec<f64>>],
     folds: &[usize],
@@ -176,12 +176,15 @@ fn student_t975(dof: usize) -> f64 {
 /// One parameter: the profile interval — values whose energy the data cannot tell from
 /// the minimum (3.84 for 95 %, scaled by the sandwich's inflation over the naive variance)
 /// — widens the interval where the objective is rugged. An undetermined σ stays so.
-fn widen_by_profile(weights: &[f64], fit: &Fit, s0: &ParamSpec, sd: &mut f64) {
+fn widen_by_profile(weights: &Weights, fit: &Fit, s0: &ParamSpec, sd: &mut f64) {
     if !sd.is_finite() {
         return;
     }
-    let g: f64 =
-        weights.iter().zip(&fit.jac[0]).map(|(w, jc)| w * jc.iter().map(|j| j * j).sum::<f64>()).sum();
+    let g: f64 = fit.jac[0]
+        .iter()
+        .enumerate()
+        .map(|(c, jc)| jc.iter().enumerate().map(|(t, j)| weights.at(c, t) * j * j).sum::<f64>())
+        .sum();
     let kappa = (*sd * *sd * g).max(1.0);
     let inside: Vec<f64> =
         fit.profile.iter().filter(|(_, e)| *e - fit.energy <= 3.84 * kappa).map(|(v, _)| *v).collect();
@@ -192,12 +195,12 @@ fn widen_by_profile(weights: &[f64], fit: &Fit, s0: &ParamSpec, sd: &mut f64) {
     }
 }
 
-/// Parameter standard deviations from the sandwich covariance. `weights[c]` is channel
-/// `c`'s `1/σ²`, `resid[c][k]` its residual and `jac[i][c][k]` the Jacobian on the fit
+/// Parameter standard deviations from the sandwich covariance. `weights` are each
+/// channel's `1/σ²` on each fit sample, `resid[c][k]` its residual and `jac[i][c][k]` the Jacobian on the fit
 /// samples; the local noise level is a moving RMS over `level_win` samples, the
 /// autocorrelation is taken up to `max_lag`. `f64::INFINITY` for an undetermined parameter.
 pub(super) fn sandwich_std(
-    weights: &[f64],
+    weights: &Weights,
     resid: &[Vec<f64>],
     jac: &[Vec<Vec<f64>>],
     level_win: usize,
@@ -206,18 +209,22 @@ pub(super) fn sandwich_std(
     let n = jac.len();
     let mut g = vec![0.0; n * n];
     let mut s = vec![0.0; n * n];
-    for (c, (&w, r)) in weights.iter().zip(resid).enumerate() {
-        let level = local_level(r, w, (level_win / 2).max(1));
+    for (c, r) in resid.iter().enumerate() {
+        let w: Vec<f64> = (0..r.len()).map(|t| weights.at(c, t)).collect();
+        let level = local_level(r, weights.mean(c, r.len()), (level_win / 2).max(1));
         let z: Vec<f64> = r.iter().zip(&level).map(|(a, b)| a / b).collect();
         let rho = tapered_autocorrelation(&z, max_lag);
         // Jacobian columns scaled by the weight and the local level; S += U' R U.
-        let u: Vec<Vec<f64>> =
-            jac.iter().map(|ji| ji[c].iter().zip(&level).map(|(j, l)| w * j * l).collect()).collect();
+        let u: Vec<Vec<f64>> = jac
+            .iter()
+            .map(|ji| ji[c].iter().zip(&level).zip(&w).map(|((j, l), w)| w * j * l).collect())
+            .collect();
         let v: Vec<Vec<f64>> = u.iter().map(|col| toeplitz_apply(&rho, col)).collect();
         for i in 0..n {
+            let wj: Vec<f64> = jac[i][c].iter().zip(&w).map(|(j, w)| j * w).collect();
             for j in 0..n {
                 s[i * n + j] += dot(&u[i], &v[j]);
-                g[i * n + j] += w * dot(&jac[i][c], &jac[j][c]);
+                g[i * n + j] += dot(&wj, &jac[j][c]);
             }
         }
     }
@@ -355,7 +362,7 @@ mod tests {
             let resid = ols_residual(&noise, &cols);
             let w = 1.0 / (sigma_e * sigma_e / (1.0 - phi * phi));
             let jac: Vec<Vec<Vec<f64>>> = cols.iter().map(|c| vec![c.clone()]).collect();
-            let est = sandwich_std(&[w], &[resid], &jac, 2_000, 4_000);
+            let est = sandwich_std(&Weights::uniform([w]), &[resid], &jac, 2_000, 4_000);
             let long_run = sigma_e / (1.0 - phi) / (m as f64).sqrt();
             let exact_mean = exact_ols_std(&cols[0], phi, sigma_e);
             assert!((exact_mean / long_run - 1.0).abs() < 1e-3, "reference {exact_mean} vs {long_run}");
@@ -419,7 +426,7 @@ mod tests {
             assert!(q >= -1e-9 * dot(&u, &u), "ω = π·{j}/200: u'Ru = {q}");
         }
         let jac = vec![vec![probe(1.19)]];
-        let sd = sandwich_std(&[1.0], &[z], &jac, 400, 400);
+        let sd = sandwich_std(&Weights::uniform([1.0]), &[z], &jac, 400, 400);
         assert!(sd[0].is_finite() && sd[0] > 0.0, "σ = {}", sd[0]);
     }
 
@@ -440,7 +447,7 @@ mod tests {
         let m = 1_000;
         let r = gaussian(41, m);
         let jac = vec![vec![vec![1.0; m]], vec![vec![0.0; m]]];
-        let sd = sandwich_std(&[1.0], &[r], &jac, 50, 100);
+        let sd = sandwich_std(&Weights::uniform([1.0]), &[r], &jac, 50, 100);
         assert!(sd[0].is_finite() && sd[0] > 0.0);
         assert_eq!(sd[1], f64::INFINITY);
         // A variance that comes out ≤ 0 (here: S = 0) is not a σ of 0.
@@ -464,9 +471,9 @@ mod tests {
         let r: Vec<f64> = y.iter().zip(x).map(|(v, xi)| v - est * xi).collect();
         let w = 1.0 / (sn * sn);
         let jac = vec![vec![x.to_vec()]];
-        let sandwich = sandwich_std(&[w], std::slice::from_ref(&r), &jac, 200, 400)[0];
-        let jackknife =
-            fold_jackknife_std(&[w], std::slice::from_ref(&r), &jac, folds).expect("five folds")[0];
+        let sandwich = sandwich_std(&Weights::uniform([w]), std::slice::from_ref(&r), &jac, 200, 400)[0];
+        let jackknife = fold_jackknife_std(&Weights::uniform([w]), std::slice::from_ref(&r), &jac, folds)
+            .expect("five folds")[0];
         let energy = r.iter().map(|v| w * v * v).sum();
         OneFit { est, sandwich, jackknife, energy }
     }
@@ -558,12 +565,12 @@ mod tests {
         let x: Vec<f64> = (0..m).map(|t| if folds[t] == 2 { 1.0 } else { 0.01 }).collect();
         let r = gaussian(51, m);
         let jac = vec![vec![x.clone()]];
-        let s0 = sandwich_std(&[1.0], std::slice::from_ref(&r), &jac, 50, 100)[0];
-        let sd =
-            fold_jackknife_std(&[1.0], std::slice::from_ref(&r), &jac, &folds).expect("four folds can go")[0];
+        let s0 = sandwich_std(&Weights::uniform([1.0]), std::slice::from_ref(&r), &jac, 50, 100)[0];
+        let sd = fold_jackknife_std(&Weights::uniform([1.0]), std::slice::from_ref(&r), &jac, &folds)
+            .expect("four folds can go")[0];
         assert!(sd.is_finite() && sd < 3.0 * s0, "jackknife {sd} vs sandwich {s0}");
         let two: Vec<usize> = (0..m).map(|t| t * 2 / m).collect();
-        assert!(fold_jackknife_std(&[1.0], &[r], &jac, &two).is_none());
+        assert!(fold_jackknife_std(&Weights::uniform([1.0]), &[r], &jac, &two).is_none());
     }
 
     #[test]
