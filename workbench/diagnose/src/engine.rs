@@ -603,31 +603,28 @@ fn confirm_leaders(
     s: &Sensitivities,
     o: &Options,
     list: &[usize],
-    ready: Vec<(usize, Fit)>,
+    mut ready: Vec<(usize, Fit)>,
     cands: &mut [Candidate],
 ) -> Vec<(usize, Fit)> {
     use rayon::prelude::*;
     let specs = |ci: usize| -> Vec<&ParamSpec> { s.groups[ci].1.iter().map(|&i| &s.specs[i]).collect() };
-    let mut ready: Vec<Option<(usize, Fit)>> = ready.into_iter().map(Some).collect();
-    let mut jobs: Vec<(usize, Option<Fit>)> = list
-        .iter()
-        .map(|&ci| {
-            (ci, ready.iter_mut().find(|r| r.as_ref().is_some_and(|r| r.0 == ci)).and_then(Option::take))
-        })
-        .map(|(ci, r)| (ci, r.map(|r| r.1)))
-        .collect();
-    jobs.extend(ready.into_iter().flatten().map(|(ci, f)| (ci, Some(f))));
+    // Each leader with its refit when one is ready, then the ready refits of the others.
+    let mut jobs: Vec<(usize, Option<Fit>)> = Vec::with_capacity(list.len() + ready.len());
+    for &ci in list {
+        let fit = ready.iter().position(|(r, _)| *r == ci).map(|k| ready.remove(k).1);
+        jobs.push((ci, fit));
+    }
+    jobs.extend(ready.into_iter().map(|(ci, f)| (ci, Some(f))));
     // The refits are independent: on the pool side by side (each one's own batches of
     // simulations share the pool), in list order.
     let done: Vec<(usize, Fit, Spread)> = jobs
         .into_par_iter()
         .filter_map(|(ci, fit)| {
             let sp = specs(ci);
+            let start: Vec<f64> = cands[ci].params.iter().map(|f| f.value).collect();
             let fit = match fit {
                 Some(f) => f,
-                None => {
-                    refit(twin, p, o, &sp, &cands[ci].params.iter().map(|f| f.value).collect::<Vec<_>>())?
-                }
+                None => refit(twin, p, o, &sp, &start)?,
             };
             // The drift is measured from where the model stood, not from the linear guess.
             let current: Vec<f64> = cands[ci].params.iter().map(|f| f.start).collect();
