@@ -35,7 +35,7 @@ use simrod_io::datadir::ModelData;
 use super::alias::map_aliases;
 use super::confounding::{confounded_groups, Leaders};
 pub use super::constancy::Drift;
-use super::dynamics::choose_dynamics;
+use super::dynamics::{choose_dynamics, with_siblings};
 use super::empirical::{correct, Empirical, Inputs as EmpiricalInputs};
 use super::library::ParamSpec;
 use super::preparation::{prepare, Prepared};
@@ -395,7 +395,8 @@ fn stages(
     scan_valleys(twin, &p, &s, o, &mut cands);
     let mut selected = greedy(&p, &s, o);
     let ready = choose_dynamics(twin, &p, &s, o, &cands, &mut selected);
-    let leaders = refit_list(&cands, &selected, o);
+    let mut leaders = refit_list(&cands, &selected, o);
+    with_siblings(&s, &mut leaders);
     let (fits, set) = rayon::join(
         || confirm_leaders(twin, &p, &s, o, &leaders, ready, &mut cands),
         || joint_fit(twin, &p, &s, o, &selected),

@@ -9,6 +9,7 @@ use super::library::{current_value, library, with_values, ParamSpec};
 use super::preparation::{channel_energies, run_all, Prepared, Weights};
 
 /// The library's parameters and the linearised model around the current one.
+#[derive(Default)]
 pub(super) struct Sensitivities {
     /// Every library parameter, in library order.
     pub specs: Vec<ParamSpec>,
