@@ -7,9 +7,8 @@
 //! sibling's refit leaves less error.
 
 use super::engine::{Candidate, Options, Twin};
-use super::library::ParamSpec;
 use super::preparation::Prepared;
-use super::refit::{refit, Fit};
+use super::refit::{refit_alone, Fit};
 use super::sensitivities::Sensitivities;
 
 const DELAY: &str = "sensor_delay.";
@@ -25,8 +24,7 @@ fn sibling(effect: &str) -> Option<String> {
 }
 
 /// Replace each selected delay (lag) by the same channel's lag (delay) when the sibling,
-/// refitted alone, leaves less weighted error. Only causes not yet in the model: one
-/// that is already there is refitted where it stands, not traded. Returns the refits
+/// refitted alone, leaves less weighted error ([`sibling_group`]). Returns the refits
 /// done, by candidate index, for the confirmation to reuse.
 pub(super) fn choose_dynamics(
     twin: &dyn Twin,
@@ -36,15 +34,15 @@ pub(super) fn choose_dynamics(
     cands: &[Candidate],
     selected: &mut [(&'static str, f64)],
 ) -> Vec<(usize, Fit)> {
-    let group = |name: &str| s.groups.iter().position(|(g, _)| *g == name);
     let mut done = Vec::new();
     for k in 0..selected.len() {
-        let Some(other) = sibling(selected[k].0) else { continue };
-        let (Some(own), Some(sib)) = (group(selected[k].0), group(&other)) else { continue };
-        if selected.iter().any(|(e, _)| *e == s.groups[sib].0) || !neutral(s, own) || !neutral(s, sib) {
+        let Some(own) = s.groups.iter().position(|(g, _)| *g == selected[k].0) else { continue };
+        let Some(sib) = sibling_group(s, own) else { continue };
+        if selected.iter().any(|(e, _)| *e == s.groups[sib].0) {
             continue;
         }
-        let (a, b) = rayon::join(|| alone(twin, p, s, o, cands, own), || alone(twin, p, s, o, cands, sib));
+        let fit = |g: usize| refit_alone(twin, p, o, s, cands, g);
+        let (a, b) = rayon::join(|| fit(own), || fit(sib));
         if let (Some(a), Some(b)) = (&a, &b) {
             if b.energy < a.energy {
                 selected[k].0 = s.groups[sib].0;
@@ -61,16 +59,19 @@ pub(super) fn choose_dynamics(
 /// outside the set (a single lead) was otherwise named without its sibling refitted (an
 /// 82 ms skew of I_XLMR 2.3 named a 78 ms lag, the delay left at its linear guess).
 pub(super) fn with_siblings(s: &Sensitivities, list: &mut Vec<usize>) {
-    let group = |name: &str| s.groups.iter().position(|(g, _)| *g == name);
-    let mut k = 0;
-    while k < list.len() {
-        let own = list[k];
-        let sib = sibling(s.groups[own].0).and_then(|o| group(&o));
-        if let Some(sib) = sib.filter(|g| !list.contains(g) && neutral(s, own) && neutral(s, *g)) {
+    for k in 0..list.len() {
+        if let Some(sib) = sibling_group(s, list[k]).filter(|g| !list.contains(g)) {
             list.push(sib);
         }
-        k += 1;
     }
+}
+
+/// The group of group `g`'s sibling, when both are in the library and neither is in
+/// the model yet (one already there is refitted where it stands, not traded).
+fn sibling_group(s: &Sensitivities, g: usize) -> Option<usize> {
+    let name = sibling(s.groups[g].0)?;
+    let sib = s.groups.iter().position(|(x, _)| *x == name)?;
+    (neutral(s, g) && neutral(s, sib)).then_some(sib)
 }
 
 /// Whether every parameter of group `g` starts at its neutral value (not in the model).
@@ -78,23 +79,10 @@ fn neutral(s: &Sensitivities, g: usize) -> bool {
     s.groups[g].1.iter().all(|&i| s.starts[i] == s.specs[i].neutral)
 }
 
-/// Group `g` refitted alone from its linear estimate.
-fn alone(
-    twin: &dyn Twin,
-    p: &Prepared,
-    s: &Sensitivities,
-    o: &Options,
-    cands: &[Candidate],
-    g: usize,
-) -> Option<Fit> {
-    let specs: Vec<&ParamSpec> = s.groups[g].1.iter().map(|&i| &s.specs[i]).collect();
-    let start: Vec<f64> = cands.get(g)?.params.iter().map(|f| f.value).collect();
-    refit(twin, p, o, &specs, &start)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::library::ParamSpec;
 
     #[test]
     fn a_delay_and_a_lag_of_one_channel_are_siblings() {

@@ -39,7 +39,7 @@ use super::dynamics::{choose_dynamics, with_siblings};
 use super::empirical::{correct, Empirical, Inputs as EmpiricalInputs};
 use super::library::ParamSpec;
 use super::preparation::{prepare, Prepared};
-use super::refit::{confirm, refit, Fit};
+use super::refit::{confirm, refit, refit_alone, Fit};
 use super::scan::scan_valleys;
 use super::selection::{greedy, refit_list, score_effects};
 use super::sensitivities::{sensitivities, Sensitivities};
@@ -622,10 +622,9 @@ fn confirm_leaders(
         .into_par_iter()
         .filter_map(|(ci, fit)| {
             let sp = specs(ci);
-            let start: Vec<f64> = cands[ci].params.iter().map(|f| f.value).collect();
             let fit = match fit {
                 Some(f) => f,
-                None => refit(twin, p, o, &sp, &start)?,
+                None => refit_alone(twin, p, o, s, cands, ci)?,
             };
             // The drift is measured from where the model stood, not from the linear guess.
             let current: Vec<f64> = cands[ci].params.iter().map(|f| f.start).collect();

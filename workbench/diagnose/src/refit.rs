@@ -9,7 +9,7 @@ use super::engine::{Candidate, Options, Twin};
 use super::library::{with_values, ParamSpec};
 use super::linalg::solve_spd;
 use super::preparation::{energy, region_errors, rmse, run_all, Prepared};
-use super::sensitivities::check_shape;
+use super::sensitivities::{check_shape, Sensitivities};
 use super::uncertainty::Spread;
 
 /// Most Levenberg–Marquardt iterations (each: one Jacobian, up to [`DAMPING_TRIES`] steps).
@@ -115,6 +115,20 @@ pub(super) fn refit(
         profile_scan(&pb, s0, &mut fit);
     }
     Some(fit)
+}
+
+/// Candidate `ci` (an effect group of `s`) refitted alone, from its linear estimate.
+pub(super) fn refit_alone(
+    twin: &dyn Twin,
+    p: &Prepared,
+    o: &Options,
+    s: &Sensitivities,
+    cands: &[Candidate],
+    ci: usize,
+) -> Option<Fit> {
+    let specs: Vec<&ParamSpec> = s.groups[ci].1.iter().map(|&i| &s.specs[i]).collect();
+    let start: Vec<f64> = cands.get(ci)?.params.iter().map(|f| f.value).collect();
+    refit(twin, p, o, &specs, &start)
 }
 
 /// One parameter: a coarse grid over its bounds (logarithmic over a wide positive
