@@ -561,11 +561,10 @@ pub fn render(d: &Diagnosed) -> String {
     }
     if let Some(loc) = &g.unexplained {
         o.push_str(&format!(
-            "UNEXPLAINED: {} holds {} of the excess error, worst at {:.1}–{:.1} s\n",
+            "UNEXPLAINED: {} holds {} of the excess error, worst at {}\n",
             loc.channel,
             pct(loc.share),
-            loc.window_s.0,
-            loc.window_s.1
+            loc.when()
         ));
         if let Some((name, e, t)) = &loc.region {
             o.push_str(&format!(

@@ -77,6 +77,11 @@ pub struct Window {
 }
 
 impl Window {
+    /// Structured at p-value threshold `th` ([`threshold`]) and material.
+    pub fn flagged_at(&self, th: f64) -> bool {
+        self.p < th && self.material
+    }
+
     /// What the window holds, for a report: the mean residual, or the line.
     pub fn what(&self, unit: &str) -> String {
         match self.line_hz {
@@ -107,7 +112,7 @@ impl ChannelWindows {
 
     /// The windows structured at p-value threshold `th` ([`threshold`]) and material.
     pub fn flagged(&self, th: f64) -> impl Iterator<Item = &Window> {
-        self.windows.iter().filter(move |w| w.p < th && w.material)
+        self.windows.iter().filter(move |w| w.flagged_at(th))
     }
 }
 

@@ -45,7 +45,7 @@ use super::selection::{greedy, refit_list, score_effects};
 use super::sensitivities::{sensitivities, Sensitivities};
 use super::uncertainty::{parameter_std, Spread};
 use super::verdict::{
-    conclude, rank, structure_in, table_beats_library, Evidence, Verdict, PREFER_TABLE_MARGIN,
+    base_structure, conclude, rank, structure_in, table_beats_library, Evidence, Verdict, PREFER_TABLE_MARGIN,
 };
 
 /// Something that simulates the measured channels for given effects.
@@ -304,13 +304,30 @@ pub struct Location {
     pub channel: &'static str,
     /// Its share.
     pub share: f64,
-    /// The worst window [s, s] of that channel's residual.
+    /// The worst window [s, s] of that channel's residual, in its run.
     pub window_s: (f64, f64),
+    /// The run of a campaign the window is in (1 for the first; `None` for one run).
+    pub run: Option<usize>,
     /// The operating region holding the largest share of the channel's excess: (name,
     /// share of the excess, share of the samples).
     pub region: Option<(String, f64, f64)>,
     /// The measured signal (or `d/dt` of one) the residual follows, and the correlation.
     pub follows: Option<(String, f64)>,
+}
+
+impl Location {
+    /// "41.0–43.0 s", or "run 3, 41.0–43.0 s" in a campaign.
+    pub fn when(&self) -> String {
+        when(self.run, self.window_s)
+    }
+}
+
+/// A window's time as [`Location::when`] says it.
+pub(super) fn when(run: Option<usize>, (from, to): (f64, f64)) -> String {
+    match run {
+        Some(r) => format!("run {r}, {from:.1}–{to:.1} s"),
+        None => format!("{from:.1}–{to:.1} s"),
+    }
 }
 
 /// The verdict, machine-readable.
@@ -411,7 +428,7 @@ fn stages(
     }
     map_aliases(twin, &p, &s, o, &selected, &mut cands);
     let ranking = rank(&cands);
-    let base_structure = structure(&p.base_sim);
+    let base_structure = base_structure(&p, twin.channels(), twin.dt_s() * p.stride as f64);
     let group = Leaders { cands: &cands, lin: &lin, fits: &fits, ranking: &ranking };
     let confounded = confounded_groups(&group, &s, o, &p.weights.means(p.idx.len()), probe);
     let ev = Evidence {

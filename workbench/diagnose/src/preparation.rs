@@ -46,6 +46,11 @@ pub(super) struct Prepared {
     /// (thinned, a 50 Hz line aliases or is lost) and once: the twin makes no mains
     /// content, so no candidate's fit changes them.
     pub lines: Vec<Vec<Window>>,
+    /// Per channel, every structure test of the current model's residual on every
+    /// sample, run by run ([`full_rate_windows`]; the lines above included): what
+    /// `compare` reports for each run, so that a diagnosis never calls noise-like what
+    /// `compare` flags.
+    pub base_windows: Vec<Vec<Window>>,
     /// Weighted squared error of the current model.
     pub e0: f64,
     /// What noise alone would give (one per fit sample and channel).
@@ -67,6 +72,19 @@ pub(super) struct Weights {
     per_run: Vec<Vec<f64>>,
     /// The run of each fit sample (empty: every sample in run 0).
     run_of: Vec<usize>,
+}
+
+impl Prepared {
+    /// Fit samples `start..start + len` (`dt` [s] apart) as a time span within their
+    /// run, and the run (1 for the first) when there are several.
+    pub fn span(&self, start: usize, len: usize, dt: f64) -> (Option<usize>, (f64, f64)) {
+        let (run, first) = match self.folds.get(start) {
+            Some(&r) if self.runs > 1 => (Some(r + 1), self.folds.partition_point(|&f| f < r)),
+            _ => (None, 0),
+        };
+        let at = start.saturating_sub(first) as f64 * dt;
+        (run, (at, at + len as f64 * dt))
+    }
 }
 
 impl Weights {
@@ -129,7 +147,9 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         .collect();
     let segments = twin.segments();
     let weights = run_weights(meas, &base_sim, &noise, &segments, stride, h);
-    let lines = mains_lines(meas, &base_sim, &twin.resolution(), &segments, twin.dt_s(), stride);
+    let base_windows = full_rate_windows(meas, &base_sim, &twin.resolution(), &segments, twin.dt_s(), stride);
+    let lines =
+        base_windows.iter().map(|w| w.iter().filter(|x| x.line_hz.is_some()).copied().collect()).collect();
     let base_sim: Vec<Vec<f32>> = base_sim.into_iter().map(|c| every(c, stride)).collect();
     let meas: Vec<Vec<f64>> = meas.iter().map(|m| every(m.clone(), stride)).collect();
     let powers = derived_powers(channels, &meas, &noise);
@@ -149,6 +169,7 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         folds,
         runs: segments.len(),
         lines,
+        base_windows,
         e0: 0.0,
         e_noise: 0.0,
         excess: 0.0,
@@ -163,11 +184,14 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
     Ok(p)
 }
 
-/// Per channel, the mains-line tests of residual `s - m` on every sample (`dt` [s]
-/// apart), run by run (`segments` samples each: a line's phase does not carry over
-/// from one run to the next), with each window's start and length counted in fit
-/// samples (every `stride`-th).
-fn mains_lines(
+/// Per channel, the structure tests of residual `s - m` on every sample (`dt` [s] apart),
+/// run by run (`segments` samples each): the time windows and mains lines `compare`
+/// reports for each run ([`structure::windows`]), with each window's start and length
+/// counted in fit samples (every `stride`-th). On every sample because thinning loses
+/// what is short (a 7 A spike of a few ms at one transient) and aliases a 50 Hz line;
+/// run by run because a line's phase and a window do not carry over from one run to
+/// the next.
+fn full_rate_windows(
     meas: &[Vec<f64>],
     sim: &[Vec<f32>],
     resolution: &[f64],
@@ -185,9 +209,9 @@ fn mains_lines(
             let mut out = Vec::new();
             for len in segments {
                 let to = (from + len).min(r.len());
-                out.extend(structure::lines(&r[from..to], dt, res).into_iter().map(|w| Window {
-                    start: from.div_ceil(stride),
-                    len: (to - from) / stride,
+                out.extend(structure::windows(&r[from..to], dt, res).windows.into_iter().map(|w| Window {
+                    start: (from + w.start).div_ceil(stride),
+                    len: (w.len / stride).max(1),
                     ..w
                 }));
                 from = to;
@@ -486,6 +510,21 @@ pub(super) mod tests {
         // Runs of 10 and 6 samples, every 2nd sample: 0,2,..,8 in run 1; 10,12,14 in run 2.
         assert_eq!(super::folds(&[10, 6], 2, 8), [0, 0, 0, 0, 0, 1, 1, 1]);
         assert_eq!(super::folds(&[100], 1, 10), [0, 0, 1, 1, 2, 2, 3, 3, 4, 4]);
+    }
+
+    /// A window is placed in its own run: fit sample 7 of runs of 5 and 4 fit samples
+    /// is 0.2 s into run 2 (at 0.1 s per fit sample); one run counts from its start.
+    #[test]
+    fn a_window_is_timed_within_its_run() {
+        let campaign =
+            super::Prepared { folds: vec![0, 0, 0, 0, 0, 1, 1, 1, 1], runs: 2, ..Default::default() };
+        let (run, (from, to)) = campaign.span(7, 2, 0.1);
+        assert_eq!(run, Some(2));
+        assert!((from - 0.2).abs() < 1e-12 && (to - 0.4).abs() < 1e-12, "{from}-{to}");
+        let one = super::Prepared { folds: vec![0, 0, 1, 1, 2, 2], runs: 1, ..Default::default() };
+        let (run, (from, _)) = one.span(4, 1, 0.1);
+        assert_eq!(run, None);
+        assert!((from - 0.4).abs() < 1e-12, "{from}");
     }
 
     /// A campaign of a quiet run (σ 0.3) and a loud one (σ 1.2): each run's samples are

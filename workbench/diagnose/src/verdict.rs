@@ -5,7 +5,9 @@
 
 use model_core::{Channel, Effects};
 
-use super::engine::{Candidate, ConfoundedGroup, Location, MapAlias, MapShape, Options, SetFit, VerdictKind};
+use super::engine::{
+    when, Candidate, ConfoundedGroup, Location, MapAlias, MapShape, Options, SetFit, VerdictKind,
+};
 use super::library::{with_values, ParamSpec};
 use super::locate::{follows, region};
 use super::preparation::{channel_energies, worse_somewhere, Prepared};
@@ -240,10 +242,12 @@ impl Evidence<'_> {
         let (c, e) = shares.first().copied().unwrap_or((0, 0.0));
         let dt = self.dt_fit();
         let (at, win) = worst_window(&p.meas[c], &sim[c], ((2.0 / dt).round() as usize).max(1));
+        let (run, window_s) = p.span(at, win, dt);
         Location {
             channel: self.channels[c].name(),
             share: e.max(0.0) / total,
-            window_s: (at as f64 * dt, (at + win) as f64 * dt),
+            window_s,
+            run,
             region: region(p, c, sim),
             follows: follows(p, self.channels, c, sim),
         }
@@ -266,6 +270,8 @@ impl Evidence<'_> {
 
 /// The most significant window of structure left in `sim`'s residual (fit samples `dt`
 /// [s] apart) over all channels, if the test `compare` reports ([`structure`]) flags any.
+/// On the fit samples: a candidate's simulation is held only there. (The current
+/// model's residual is tested on every sample: [`base_structure`].)
 pub(super) fn structure_in(
     p: &Prepared,
     channels: &[Channel],
@@ -273,7 +279,7 @@ pub(super) fn structure_in(
     dt: f64,
     sim: &[Vec<f32>],
 ) -> Option<Structure> {
-    let per_channel: Vec<structure::ChannelWindows> = p
+    let per_channel: Vec<Vec<structure::Window>> = p
         .meas
         .iter()
         .zip(sim)
@@ -285,17 +291,40 @@ pub(super) fn structure_in(
         .enumerate()
         .map(|(c, mut w)| {
             w.add_lines(p.lines.get(c).into_iter().flatten().copied());
-            w
+            w.windows
         })
         .collect();
-    let tested: usize = per_channel.iter().map(|c| c.windows.len()).sum();
+    strongest(p, channels, dt, &per_channel)
+}
+
+/// The most significant window of structure in the current model's residual, tested on
+/// every sample run by run ([`Prepared::base_windows`]), if any is flagged: the same
+/// windows `compare` reports for each run.
+pub(super) fn base_structure(p: &Prepared, channels: &[Channel], dt: f64) -> Option<Structure> {
+    strongest(p, channels, dt, &p.base_windows)
+}
+
+/// The flagged window of least `ln p` among `per_channel`'s windows (fit samples `dt` [s]
+/// apart), at the threshold for all of them ([`structure::threshold`]).
+fn strongest(
+    p: &Prepared,
+    channels: &[Channel],
+    dt: f64,
+    per_channel: &[Vec<structure::Window>],
+) -> Option<Structure> {
+    let tested: usize = per_channel.iter().map(Vec::len).sum();
     let th = structure::threshold(tested);
-    let flagged: Vec<(usize, &structure::Window)> =
-        per_channel.iter().enumerate().flat_map(|(c, w)| w.flagged(th).map(move |x| (c, x))).collect();
+    let flagged: Vec<(usize, &structure::Window)> = per_channel
+        .iter()
+        .enumerate()
+        .flat_map(|(c, w)| w.iter().filter(|x| x.flagged_at(th)).map(move |x| (c, x)))
+        .collect();
     let (c, w) = flagged.iter().min_by(|a, b| a.1.log_p.total_cmp(&b.1.log_p))?;
+    let (run, window_s) = p.span(w.start, w.len, dt);
     Some(Structure {
         channel: channels[*c].name(),
-        window_s: (w.start as f64 * dt, (w.start + w.len) as f64 * dt),
+        window_s,
+        run,
         what: w.what(channels[*c].unit()),
         p: w.p,
         flagged: flagged.len(),
@@ -493,6 +522,7 @@ fn describe_set(set: &SetFit, cands: &[Candidate]) -> String {
 pub(super) struct Structure {
     channel: &'static str,
     window_s: (f64, f64),
+    run: Option<usize>,
     /// What the window holds ([`structure::Window::what`]).
     what: String,
     p: f64,
@@ -503,15 +533,24 @@ pub(super) struct Structure {
 impl Structure {
     /// Where it is, as a verdict's location.
     fn location(&self) -> Location {
-        Location { channel: self.channel, share: 1.0, window_s: self.window_s, region: None, follows: None }
+        Location {
+            channel: self.channel,
+            share: 1.0,
+            window_s: self.window_s,
+            run: self.run,
+            region: None,
+            follows: None,
+        }
     }
 
     /// "structure is left that `who` do(es) not explain: …".
     fn left(&self, who: &str) -> String {
         let verb = if who == "they" { "do" } else { "does" };
         format!(
-            "structure is left that {who} {verb} not explain: {} at {:.1}–{:.1} s ({})",
-            self.channel, self.window_s.0, self.window_s.1, self.what
+            "structure is left that {who} {verb} not explain: {} at {} ({})",
+            self.channel,
+            when(self.run, self.window_s),
+            self.what
         )
     }
 }
@@ -519,11 +558,10 @@ impl Structure {
 fn local_structure(ratio: f64, st: &Structure) -> String {
     format!(
         "unexplained: the whole run's error is noise-like ({ratio:.2}x the noise), but not everywhere: {} has \
-         structure left at {:.1}–{:.1} s ({}, p {} against noise alone; {} of {} \
+         structure left at {} ({}, p {} against noise alone; {} of {} \
          windows flagged at 1 % over all of them) that no library effect explains",
         st.channel,
-        st.window_s.0,
-        st.window_s.1,
+        when(st.run, st.window_s),
         st.what,
         structure::p_text(st.p),
         st.flagged,
@@ -613,11 +651,10 @@ pub(super) fn place(loc: &Location) -> String {
     });
     let follows = loc.follows.as_ref().map(|(name, r)| format!("; it follows {name} (correlation {r:.2})"));
     format!(
-        "{} ({:.0} % of the excess), worst at {:.1}–{:.1} s{}{}",
+        "{} ({:.0} % of the excess), worst at {}{}{}",
         loc.channel,
         100.0 * loc.share,
-        loc.window_s.0,
-        loc.window_s.1,
+        loc.when(),
         region.unwrap_or_default(),
         follows.unwrap_or_default()
     )
