@@ -52,8 +52,8 @@ pub(super) struct Evidence<'a> {
     pub set: Option<&'a SetFit>,
     pub ranking: &'a [Candidate],
     pub confounded: &'a [ConfoundedGroup],
-    /// The structure flagged in the current model's residual
-    /// ([`Evidence::structure_left`] of the base), if any.
+    /// The structure flagged in the current model's residual, tested on every sample
+    /// ([`base_structure`]), if any.
     pub base_structure: Option<Structure>,
 }
 
@@ -120,12 +120,21 @@ impl Evidence<'_> {
         None
     }
 
-    /// Whether `c`'s refit leaves no structure where the current model's residual has
-    /// some ([`Evidence::base_structure`]): a located error removed whole is evidence
-    /// however little of the whole run's noise energy it is (a regenerating loss on one
-    /// current over 2 s), and chance fits of noise do not remove a flagged window.
+    /// Whether `c`'s refit leaves no structure on the channels it moves where the current
+    /// model's residual has some there ([`Prepared::base_windows`]): a located error
+    /// removed whole is evidence however little of the whole run's noise energy it is (a
+    /// regenerating loss on one current over 2 s), and chance fits of noise do not remove
+    /// a flagged window. Structure on channels it does not move is not its to clear (a
+    /// torque amplifier's lag beside a twin/plant mismatch on the other side's torque).
     fn clears_structure(&self, c: &Candidate) -> bool {
-        self.base_structure.is_some() && c.significant && c.leaves_structure == Some(false)
+        let Some(f) = self.after(c.effect).filter(|_| c.significant) else { return false };
+        let mine: Vec<bool> = self.channels.iter().map(|ch| c.moves.contains(&ch.name())).collect();
+        let on_mine = |per_channel: &[Vec<structure::Window>]| {
+            let th = structure::threshold(per_channel.iter().map(Vec::len).sum());
+            per_channel.iter().zip(&mine).any(|(w, m)| *m && w.iter().any(|x| x.flagged_at(th)))
+        };
+        on_mine(&self.p.base_windows)
+            && !on_mine(&windows_in(self.p, &self.resolution, self.dt_fit(), &f.sim))
     }
 
     /// The best significant candidate refused only because it makes a channel worse
@@ -279,8 +288,13 @@ pub(super) fn structure_in(
     dt: f64,
     sim: &[Vec<f32>],
 ) -> Option<Structure> {
-    let per_channel: Vec<Vec<structure::Window>> = p
-        .meas
+    strongest(p, channels, dt, &windows_in(p, resolution, dt, sim))
+}
+
+/// Per channel, the structure tests of `sim`'s residual on the fit samples (`dt` [s]
+/// apart), with the current model's mains lines ([`Prepared::lines`]).
+fn windows_in(p: &Prepared, resolution: &[f64], dt: f64, sim: &[Vec<f32>]) -> Vec<Vec<structure::Window>> {
+    p.meas
         .iter()
         .zip(sim)
         .zip(resolution)
@@ -293,8 +307,7 @@ pub(super) fn structure_in(
             w.add_lines(p.lines.get(c).into_iter().flatten().copied());
             w.windows
         })
-        .collect();
-    strongest(p, channels, dt, &per_channel)
+        .collect()
 }
 
 /// The most significant window of structure in the current model's residual, tested on
@@ -302,6 +315,29 @@ pub(super) fn structure_in(
 /// windows `compare` reports for each run.
 pub(super) fn base_structure(p: &Prepared, channels: &[Channel], dt: f64) -> Option<Structure> {
     strongest(p, channels, dt, &p.base_windows)
+}
+
+/// Verdict `v` with its proposal's residual tested on every sample too (`windows`, as
+/// [`Prepared::base_windows`] tests the current model's): a "missing" verdict whose
+/// proposal leaves structure there (an error of a few ms between the fit samples) is
+/// partial, and says where.
+pub(super) fn on_every_sample(
+    p: &Prepared,
+    channels: &[Channel],
+    dt: f64,
+    v: Verdict,
+    windows: &[Vec<structure::Window>],
+) -> Verdict {
+    let Some(st) = strongest(p, channels, dt, windows).filter(|_| v.kind == VerdictKind::Missing) else {
+        return v;
+    };
+    let who = if v.named.len() > 1 { "they" } else { "it" };
+    Verdict {
+        kind: VerdictKind::Partial,
+        sentence: format!("{}; {}", v.sentence, st.left(who)),
+        unexplained: Some(st.location()),
+        ..v
+    }
 }
 
 /// The flagged window of least `ln p` among `per_channel`'s windows (fit samples `dt` [s]
@@ -863,10 +899,13 @@ mod tests {
             let v = |k: usize| if dip { truth(k) } else { 24.0 };
             vec![(0..n).map(|k| v(k) as f32).collect(), vec![100.0f32; n]]
         };
-        let p = Prepared::single_run(meas, noise, sim(false));
+        let quiet = Prepared::single_run(meas.clone(), noise.clone(), sim(false));
+        let res = [0.0; 2];
+        // The current model's windows as the diagnosis tests them (here on every sample).
+        let base_windows = windows_in(&quiet, &res, dt, &quiet.base_sim);
+        let p = Prepared { base_windows, ..Prepared::single_run(meas, noise, sim(false)) };
         let o = Options::default();
         let s = supply_resistance_only(&o);
-        let res = [0.0; 2];
         let after = sim(true);
         let flagged = || structure_in(&p, &channels, &res, dt, &p.base_sim);
         let left = structure_in(&p, &channels, &res, dt, &after).is_some();
@@ -877,8 +916,9 @@ mod tests {
         let cand = supply_candidate(&p, energy, left);
         let (cands, fits) = (vec![cand], vec![(0, fit)]);
         let judge = |located: bool| {
+            let p = if located { &p } else { &quiet };
             let ev = Evidence {
-                p: &p,
+                p,
                 s: &s,
                 o: &o,
                 channels: &channels,
@@ -889,7 +929,7 @@ mod tests {
                 set: None,
                 ranking: &cands,
                 confounded: &[],
-                base_structure: if located { flagged() } else { None },
+                base_structure: base_structure(p, &channels, dt),
             };
             (ev.refusal(&cands[0]), conclude(&ev))
         };
@@ -898,5 +938,55 @@ mod tests {
         assert_eq!((v.kind, v.lead), (VerdictKind::Missing, Some("supply_resistance")), "{}", v.sentence);
         let (why, _) = judge(false);
         assert_eq!(why.as_deref(), Some("its refit removes less than a chance fit of the noise"));
+    }
+
+    /// The same 2 s dip on V_DC, removed whole by a cause that moves V_DC alone, beside a
+    /// 2 s step on I_DC (5 σ) that no candidate touches: the dip cleared on the cause's
+    /// own channel is its evidence, the step is left located (partial). The old rule
+    /// asked for no structure anywhere after the refit and refused the cause.
+    #[test]
+    fn structure_elsewhere_does_not_refuse_a_cause_that_clears_its_own_channel() {
+        let (n, dt) = (6_000, 0.01);
+        let channels = [Channel::VDc, Channel::IDc];
+        let noise = vec![("V_DC", 0.01), ("I_DC", 0.1)];
+        let (nv, ni) = (gaussian(61, n), gaussian(62, n));
+        let dip = |k: usize| 24.0 + if (2_000..2_200).contains(&k) { -0.006 } else { 0.0 };
+        let step = |k: usize| 100.0 + if (4_000..4_200).contains(&k) { 0.5 } else { 0.0 };
+        let meas: Vec<Vec<f64>> = vec![
+            (0..n).map(|k| dip(k) + 0.01 * nv[k]).collect(),
+            (0..n).map(|k| step(k) + 0.1 * ni[k]).collect(),
+        ];
+        let sim = |fixed: bool| -> Vec<Vec<f32>> {
+            let v = |k: usize| if fixed { dip(k) } else { 24.0 };
+            vec![(0..n).map(|k| v(k) as f32).collect(), vec![100.0f32; n]]
+        };
+        let res = [0.0; 2];
+        let plain = Prepared::single_run(meas.clone(), noise.clone(), sim(false));
+        let p = Prepared { base_windows: windows_in(&plain, &res, dt, &plain.base_sim), ..plain };
+        let o = Options::default();
+        let s = supply_resistance_only(&o);
+        let after = sim(true);
+        let energy: f64 = channel_energies(&p, &after).iter().sum();
+        let fit = Fit { values: vec![0.012], sim: after, jac: Vec::new(), energy, profile: Vec::new() };
+        let cand = Candidate { moves: vec!["V_DC"], ..supply_candidate(&p, energy, true) };
+        let (cands, fits) = (vec![cand], vec![(0, fit)]);
+        let ev = Evidence {
+            p: &p,
+            s: &s,
+            o: &o,
+            channels: &channels,
+            resolution: res.to_vec(),
+            dt,
+            cands: &cands,
+            fits: &fits,
+            set: None,
+            ranking: &cands,
+            confounded: &[],
+            base_structure: base_structure(&p, &channels, dt),
+        };
+        assert_eq!(ev.refusal(&cands[0]), None);
+        let v = conclude(&ev);
+        assert_eq!((v.kind, v.lead), (VerdictKind::Partial, Some("supply_resistance")), "{}", v.sentence);
+        assert_eq!(v.unexplained.map(|l| l.channel), Some("I_DC"));
     }
 }
