@@ -880,6 +880,32 @@ mod tests {
         assert_eq!(st.channel, "I_DC", "located on {} at {:?}", st.channel, st.window_s);
     }
 
+    /// The evidence of a single refitted candidate (`cands`, ranked as given) on `p`,
+    /// with no set and nothing confounded, the sensors without resolution.
+    fn one_candidate<'a>(
+        p: &'a Prepared,
+        s: &'a Sensitivities,
+        o: &'a Options,
+        channels: &'a [Channel],
+        dt: f64,
+        (cands, fits): (&'a [Candidate], &'a [(usize, Fit)]),
+    ) -> Evidence<'a> {
+        Evidence {
+            p,
+            s,
+            o,
+            channels,
+            resolution: vec![0.0; channels.len()],
+            dt,
+            cands,
+            fits,
+            set: None,
+            ranking: cands,
+            confounded: &[],
+            base_structure: base_structure(p, channels, dt),
+        }
+    }
+
     /// A cause whose error is confined to 2 s of a 60 s run (0.6 σ on one channel) removes
     /// under 1 % of the run's noise energy, less than the chance-fit bar; but the residual
     /// test flags that window and the cause's refit leaves nothing flagged, so it is the
@@ -917,20 +943,7 @@ mod tests {
         let (cands, fits) = (vec![cand], vec![(0, fit)]);
         let judge = |located: bool| {
             let p = if located { &p } else { &quiet };
-            let ev = Evidence {
-                p,
-                s: &s,
-                o: &o,
-                channels: &channels,
-                resolution: res.to_vec(),
-                dt,
-                cands: &cands,
-                fits: &fits,
-                set: None,
-                ranking: &cands,
-                confounded: &[],
-                base_structure: base_structure(p, &channels, dt),
-            };
+            let ev = one_candidate(p, &s, &o, &channels, dt, (&cands, &fits));
             (ev.refusal(&cands[0]), conclude(&ev))
         };
         let (why, v) = judge(true);
@@ -970,20 +983,7 @@ mod tests {
         let fit = Fit { values: vec![0.012], sim: after, jac: Vec::new(), energy, profile: Vec::new() };
         let cand = Candidate { moves: vec!["V_DC"], ..supply_candidate(&p, energy, true) };
         let (cands, fits) = (vec![cand], vec![(0, fit)]);
-        let ev = Evidence {
-            p: &p,
-            s: &s,
-            o: &o,
-            channels: &channels,
-            resolution: res.to_vec(),
-            dt,
-            cands: &cands,
-            fits: &fits,
-            set: None,
-            ranking: &cands,
-            confounded: &[],
-            base_structure: base_structure(&p, &channels, dt),
-        };
+        let ev = one_candidate(&p, &s, &o, &channels, dt, (&cands, &fits));
         assert_eq!(ev.refusal(&cands[0]), None);
         let v = conclude(&ev);
         assert_eq!((v.kind, v.lead), (VerdictKind::Partial, Some("supply_resistance")), "{}", v.sentence);
