@@ -230,25 +230,6 @@ fn a_spike_between_the_fit_samples_is_located_as_compare_flags_it() {
     assert!((28.0..=30.005).contains(&at), "located at {at} s: {}", j["verdict"]);
 }
 
-/// A hidden axle friction beside a one-sample 160 A spike on I_DC that no fit sample
-/// reads (sample 13,001 of a 26 s run fitted on every 3rd): the friction is
-/// named, but not as all that is missing — its proposal, simulated on every sample,
-/// leaves the spike, so the verdict is partial and locates it (it said "missing").
-#[test]
-fn a_missing_effect_beside_a_spike_is_partial_and_says_where() {
-    let d = tempfile::tempdir().unwrap();
-    let p = d.path();
-    std::fs::write(p.join("hidden.toml"), "[axle_friction_scale]\nleft = 1.3\nright = 1.0\n").unwrap();
-    let a = ["bench", "--profile", "TP12", "--effects", "hidden.toml", "--seed", "3", "-q", "--out", "m.csv"];
-    ok(&simrod(p, &a));
-    let text = std::fs::read_to_string(p.join("m.csv")).unwrap();
-    std::fs::write(p.join("s.csv"), add_to_column(&text, "I_DC", 13_001..13_002, 160.0)).unwrap();
-    let j: Value = serde_json::from_str(&ok(&simrod(p, &["diagnose", "s.csv", "--json"]))).unwrap();
-    assert_eq!(j["kind"], "partial", "{}", j["verdict"]);
-    assert_eq!(j["selected"][0]["effect"], "axle_friction_scale", "{}", j["verdict"]);
-    assert_eq!(j["unexplained"]["channel"], "I_DC", "{}", j["verdict"]);
-}
-
 /// A 0.5 A mains line on I_DC in a campaign of TP07 and TP11 (130 s): the fit keeps
 /// every 11th sample (91 Hz), where a 50 Hz line cannot be seen, so the line is tested
 /// on every sample of each run. Diagnose must locate it on I_DC, not call the run noise

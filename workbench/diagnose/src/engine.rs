@@ -38,15 +38,14 @@ pub use super::constancy::Drift;
 use super::dynamics::{choose_dynamics, with_siblings};
 use super::empirical::{correct, Empirical, Inputs as EmpiricalInputs};
 use super::library::ParamSpec;
-use super::preparation::{full_rate_windows, prepare, Prepared};
+use super::preparation::{prepare, Prepared};
 use super::refit::{confirm, refit, refit_alone, Fit};
 use super::scan::scan_valleys;
 use super::selection::{greedy, refit_list, score_effects};
 use super::sensitivities::{sensitivities, Sensitivities};
 use super::uncertainty::{parameter_std, Spread};
 use super::verdict::{
-    base_structure, conclude, on_every_sample, rank, structure_in, table_beats_library, Evidence, Verdict,
-    PREFER_TABLE_MARGIN,
+    base_structure, conclude, rank, structure_in, table_beats_library, Evidence, Verdict, PREFER_TABLE_MARGIN,
 };
 
 /// Something that simulates the measured channels for given effects.
@@ -446,9 +445,7 @@ fn stages(
         confounded: &confounded,
         base_structure,
     };
-    let v = conclude(&ev);
-    let v = if v.kind == VerdictKind::Missing { missing_on_every_sample(twin, meas, &p, v)? } else { v };
-    let (v, empirical) = tables(twin, &ev, v);
+    let (v, empirical) = tables(twin, &ev, conclude(&ev));
     selected.retain(|(e, _)| v.named.contains(e));
     let sentence = match empirical.as_ref() {
         Some(e) if e.refused.is_none() => format!("{}; {}", v.sentence, e.offer()),
@@ -467,21 +464,6 @@ fn stages(
         proposed: v.proposed,
         empirical,
     })
-}
-
-/// A "missing" verdict `v` checked on every sample of the runs `meas`: the proposal is
-/// simulated at the full rate and its residual tested as `compare` tests it
-/// ([`on_every_sample`]); the fits read only every `stride`-th sample.
-fn missing_on_every_sample(
-    twin: &dyn Twin,
-    meas: &[Vec<f64>],
-    p: &Prepared,
-    v: Verdict,
-) -> Result<Verdict, String> {
-    let sim = twin.run(&v.proposed)?;
-    let dt = twin.dt_s();
-    let windows = full_rate_windows(meas, &sim, &twin.resolution(), &twin.segments(), dt, p.stride);
-    Ok(on_every_sample(p, twin.channels(), dt * p.stride as f64, v, &windows))
 }
 
 /// Stage 8: when the library leaves error, an empirical correction of the maps. Fitted

@@ -191,7 +191,7 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
 /// what is short (a 7 A spike of a few ms at one transient) and aliases a 50 Hz line;
 /// run by run because a line's phase and a window do not carry over from one run to
 /// the next.
-pub(super) fn full_rate_windows(
+fn full_rate_windows(
     meas: &[Vec<f64>],
     sim: &[Vec<f32>],
     resolution: &[f64],

@@ -317,29 +317,6 @@ pub(super) fn base_structure(p: &Prepared, channels: &[Channel], dt: f64) -> Opt
     strongest(p, channels, dt, &p.base_windows)
 }
 
-/// Verdict `v` with its proposal's residual tested on every sample too (`windows`, as
-/// [`Prepared::base_windows`] tests the current model's): a "missing" verdict whose
-/// proposal leaves structure there (an error of a few ms between the fit samples) is
-/// partial, and says where.
-pub(super) fn on_every_sample(
-    p: &Prepared,
-    channels: &[Channel],
-    dt: f64,
-    v: Verdict,
-    windows: &[Vec<structure::Window>],
-) -> Verdict {
-    let Some(st) = strongest(p, channels, dt, windows).filter(|_| v.kind == VerdictKind::Missing) else {
-        return v;
-    };
-    let who = if v.named.len() > 1 { "they" } else { "it" };
-    Verdict {
-        kind: VerdictKind::Partial,
-        sentence: format!("{}; {}", v.sentence, st.left(who)),
-        unexplained: Some(st.location()),
-        ..v
-    }
-}
-
 /// The flagged window of least `ln p` among `per_channel`'s windows (fit samples `dt` [s]
 /// apart), at the threshold for all of them ([`structure::threshold`]).
 fn strongest(
