@@ -318,15 +318,11 @@ pub struct Location {
 impl Location {
     /// "41.0–43.0 s", or "run 3, 41.0–43.0 s" in a campaign.
     pub fn when(&self) -> String {
-        when(self.run, self.window_s)
-    }
-}
-
-/// A window's time as [`Location::when`] says it.
-pub(super) fn when(run: Option<usize>, (from, to): (f64, f64)) -> String {
-    match run {
-        Some(r) => format!("run {r}, {from:.1}–{to:.1} s"),
-        None => format!("{from:.1}–{to:.1} s"),
+        let (from, to) = self.window_s;
+        match self.run {
+            Some(r) => format!("run {r}, {from:.1}–{to:.1} s"),
+            None => format!("{from:.1}–{to:.1} s"),
+        }
     }
 }
 

@@ -41,15 +41,11 @@ pub(super) struct Prepared {
     pub folds: Vec<usize>,
     /// Recorded runs (a campaign: more than one; then `folds` are the runs).
     pub runs: usize,
-    /// Per channel, the mains-line tests of the current model's residual, run by run
-    /// ([`structure::lines`]), as windows over the fit samples. Tested on every sample
-    /// (thinned, a 50 Hz line aliases or is lost) and once: the twin makes no mains
-    /// content, so no candidate's fit changes them.
-    pub lines: Vec<Vec<Window>>,
     /// Per channel, every structure test of the current model's residual on every
-    /// sample, run by run ([`full_rate_windows`]; the lines above included): what
+    /// sample, run by run ([`full_rate_windows`]), as windows over the fit samples: what
     /// `compare` reports for each run, so that a diagnosis never calls noise-like what
-    /// `compare` flags.
+    /// `compare` flags. Its mains lines ([`Prepared::lines`]) are tested once, here: the
+    /// twin makes no mains content, so no candidate's fit changes them.
     pub base_windows: Vec<Vec<Window>>,
     /// Weighted squared error of the current model.
     pub e0: f64,
@@ -75,6 +71,12 @@ pub(super) struct Weights {
 }
 
 impl Prepared {
+    /// Channel `c`'s mains-line tests among [`Prepared::base_windows`] (a line needs
+    /// every sample: thinned, 50 Hz aliases or is lost).
+    pub fn lines(&self, c: usize) -> impl Iterator<Item = Window> + '_ {
+        self.base_windows.get(c).into_iter().flatten().filter(|w| w.line_hz.is_some()).copied()
+    }
+
     /// Fit samples `start..start + len` (`dt` [s] apart) as a time span within their
     /// run, and the run (1 for the first) when there are several.
     pub fn span(&self, start: usize, len: usize, dt: f64) -> (Option<usize>, (f64, f64)) {
@@ -148,8 +150,6 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
     let segments = twin.segments();
     let weights = run_weights(meas, &base_sim, &noise, &segments, stride, h);
     let base_windows = full_rate_windows(meas, &base_sim, &twin.resolution(), &segments, twin.dt_s(), stride);
-    let lines =
-        base_windows.iter().map(|w| w.iter().filter(|x| x.line_hz.is_some()).copied().collect()).collect();
     let base_sim: Vec<Vec<f32>> = base_sim.into_iter().map(|c| every(c, stride)).collect();
     let meas: Vec<Vec<f64>> = meas.iter().map(|m| every(m.clone(), stride)).collect();
     let powers = derived_powers(channels, &meas, &noise);
@@ -168,7 +168,6 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         stride,
         folds,
         runs: segments.len(),
-        lines,
         base_windows,
         e0: 0.0,
         e_noise: 0.0,

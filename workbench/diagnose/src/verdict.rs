@@ -5,9 +5,7 @@
 
 use model_core::{Channel, Effects};
 
-use super::engine::{
-    when, Candidate, ConfoundedGroup, Location, MapAlias, MapShape, Options, SetFit, VerdictKind,
-};
+use super::engine::{Candidate, ConfoundedGroup, Location, MapAlias, MapShape, Options, SetFit, VerdictKind};
 use super::library::{with_values, ParamSpec};
 use super::locate::{follows, region};
 use super::preparation::{channel_energies, worse_somewhere, Prepared};
@@ -304,7 +302,7 @@ fn windows_in(p: &Prepared, resolution: &[f64], dt: f64, sim: &[Vec<f32>]) -> Ve
         })
         .enumerate()
         .map(|(c, mut w)| {
-            w.add_lines(p.lines.get(c).into_iter().flatten().copied());
+            w.add_lines(p.lines(c));
             w.windows
         })
         .collect()
@@ -334,15 +332,9 @@ fn strongest(
         .collect();
     let (c, w) = flagged.iter().min_by(|a, b| a.1.log_p.total_cmp(&b.1.log_p))?;
     let (run, window_s) = p.span(w.start, w.len, dt);
-    Some(Structure {
-        channel: channels[*c].name(),
-        window_s,
-        run,
-        what: w.what(channels[*c].unit()),
-        p: w.p,
-        flagged: flagged.len(),
-        tested,
-    })
+    let location =
+        Location { channel: channels[*c].name(), share: 1.0, window_s, run, region: None, follows: None };
+    Some(Structure { location, what: w.what(channels[*c].unit()), p: w.p, flagged: flagged.len(), tested })
 }
 
 /// Start and length (samples) of the window of at most `win` samples with the largest
@@ -533,9 +525,8 @@ fn describe_set(set: &SetFit, cands: &[Candidate]) -> String {
 
 /// Structure found where the whole run's energy is noise-like.
 pub(super) struct Structure {
-    channel: &'static str,
-    window_s: (f64, f64),
-    run: Option<usize>,
+    /// The window, as a verdict's location (all of the structure's share).
+    location: Location,
     /// What the window holds ([`structure::Window::what`]).
     what: String,
     p: f64,
@@ -546,14 +537,7 @@ pub(super) struct Structure {
 impl Structure {
     /// Where it is, as a verdict's location.
     fn location(&self) -> Location {
-        Location {
-            channel: self.channel,
-            share: 1.0,
-            window_s: self.window_s,
-            run: self.run,
-            region: None,
-            follows: None,
-        }
+        self.location.clone()
     }
 
     /// "structure is left that `who` do(es) not explain: …".
@@ -561,8 +545,8 @@ impl Structure {
         let verb = if who == "they" { "do" } else { "does" };
         format!(
             "structure is left that {who} {verb} not explain: {} at {} ({})",
-            self.channel,
-            when(self.run, self.window_s),
+            self.location.channel,
+            self.location.when(),
             self.what
         )
     }
@@ -573,8 +557,8 @@ fn local_structure(ratio: f64, st: &Structure) -> String {
         "unexplained: the whole run's error is noise-like ({ratio:.2}x the noise), but not everywhere: {} has \
          structure left at {} ({}, p {} against noise alone; {} of {} \
          windows flagged at 1 % over all of them) that no library effect explains",
-        st.channel,
-        when(st.run, st.window_s),
+        st.location.channel,
+        st.location.when(),
         st.what,
         structure::p_text(st.p),
         st.flagged,
@@ -854,7 +838,13 @@ mod tests {
         };
         assert_eq!((weakest_p(0), weakest_p(1)), (0.0, 0.0), "both underflow");
         let st = structure_in(&p, &channels, &[0.0; 2], dt, &p.base_sim).expect("structure is flagged");
-        assert_eq!(st.channel, "I_DC", "located on {} at {:?}", st.channel, st.window_s);
+        assert_eq!(
+            st.location.channel,
+            "I_DC",
+            "located on {} at {}",
+            st.location.channel,
+            st.location.when()
+        );
     }
 
     /// The evidence of a single refitted candidate (`cands`, ranked as given) on `p`,
