@@ -5,6 +5,14 @@
 //! alone (one Gauss–Newton step from the joint optimum on that fifth's normal
 //! equations). A constant effect's fifths scatter around the optimum; a time-varying one
 //! walks away from it in one direction, run after run.
+//!
+//! The same holds over the operating point: a constant effect's value does not depend on
+//! how fast the bench turns. A plant effect the library lacks, fitted by the library
+//! effect of nearest form (a drag quadratic in speed by a viscous differential friction),
+//! asks for a value that grows band by band from the slowest fifth of the speeds to the
+//! fastest: the library effect only averages it.
+
+use model_core::Channel;
 
 use super::library::ParamSpec;
 use super::linalg::solve_spd;
@@ -30,21 +38,34 @@ const MIN_Z: f64 = 5.0;
 /// departure from where it started: a drift that matters against what is claimed.
 const MIN_SHARE: f64 = 0.5;
 
-/// A parameter whose estimate changes steadily over the course of a run.
+/// A parameter whose estimate changes steadily over the course of a run, or with speed.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Drift {
     /// Parameter name.
     pub param: &'static str,
-    /// Its estimate from the first and from the last stretch of the run(s) alone.
+    /// What it changes along.
+    pub along: Along,
+    /// Its estimate from the first and from the last stretch (or speed band) alone.
     pub first: f64,
     pub last: f64,
 }
 
+/// What a [`Drift`] is measured along.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Along {
+    /// The course of the run(s): fifths of each run's fit samples.
+    Time,
+    /// The operating speed: fifths of the moving fit samples by measured |motor speed|.
+    Speed,
+}
+
+/// Below this share of the largest |motor speed| the bench is at rest: no speed band.
+const REST: f64 = 0.05;
+
 /// The first parameter of `fit` (residual `resid[channel][fit sample]`, σ from noise
-/// alone `std`, the sandwich's) that drifts: its stretch estimates are monotone within their noise, their linear trend is at least [`MIN_Z`] standard errors
-/// and their first-to-last change is at least [`MIN_SHARE`] of the departure from
-/// `starts` — also with the first or the last stretch left out, so that one odd stretch
-/// (a start-up at low speed) is not taken for a drift.
+/// alone `std`, the sandwich's) that drifts over the run, or else that changes with
+/// speed ([`Along`]).
 pub(super) fn drift(
     p: &Prepared,
     resid: &[Vec<f64>],
@@ -53,24 +74,59 @@ pub(super) fn drift(
     starts: &[f64],
     std: &[f64],
 ) -> Option<Drift> {
-    let stretch = stretches(p);
-    let (g, b) = normal_equations_by(&p.weights, &fit.jac, |c, t| resid[c][t], STRETCHES, |_, t| stretch[t]);
+    let over = |along| drift_along(p, resid, fit, specs, starts, std, along);
+    over(Along::Time).or_else(|| over(Along::Speed))
+}
+
+/// The first parameter of `fit` whose estimates, part by part along `along`, walk
+/// ([`walks`]): they are monotone within their noise, their linear trend is at least
+/// [`MIN_Z`] standard errors and their first-to-last change is at least [`MIN_SHARE`] of
+/// the departure from `starts` — also with the first or the last part left out, so that
+/// one odd stretch (a start-up at low speed) is not taken for a drift. Over time each
+/// stretch's estimate is joint (one Gauss–Newton step on its normal equations); over
+/// speed it is the parameter's alone with the others held at the optimum, because
+/// within one band of speeds a Coulomb and a viscous friction cannot be told apart.
+fn drift_along(
+    p: &Prepared,
+    resid: &[Vec<f64>],
+    fit: &Fit,
+    specs: &[&ParamSpec],
+    starts: &[f64],
+    std: &[f64],
+    along: Along,
+) -> Option<Drift> {
+    let (part, parts, skip) = match along {
+        Along::Time => (stretches(p), STRETCHES, usize::MAX),
+        Along::Speed => (speed_bands(p)?, STRETCHES + 1, 0),
+    };
+    let (g, b) = normal_equations_by(&p.weights, &fit.jac, |c, t| resid[c][t], parts, |_, t| part[t]);
     let n = fit.jac.len();
     let total: Vec<f64> = (0..n * n).map(|x| g.iter().map(|gs| gs[x]).sum()).collect();
     (0..n).find_map(|i| {
         let naive = inverse_diagonal(&total, n, i)?.sqrt();
-        // The sandwich's inflation over the white-noise σ, applied to every stretch.
+        // The sandwich's inflation over the white-noise σ, applied to every part.
         let inflate = (std.get(i)? / naive).max(1.0);
         let departure = (fit.values[i] - starts.get(i)?).abs();
-        let points: Vec<(f64, f64, f64)> = (0..STRETCHES)
+        let points: Vec<(f64, f64, f64)> = (0..parts)
+            .filter(|&s| s != skip)
             .filter_map(|s| {
-                let d = solve_spd(&g[s], &b[s], 1e-12)?;
-                let sd = inflate * inverse_diagonal(&g[s], n, i)?.sqrt();
-                (sd <= RESOLVE * departure).then_some((s as f64, fit.values[i] + d[i], sd))
+                let (d, var) = match along {
+                    Along::Time => (solve_spd(&g[s], &b[s], 1e-12)?[i], inverse_diagonal(&g[s], n, i)?),
+                    Along::Speed => {
+                        let gii = g[s][i * n + i];
+                        (gii > 0.0).then(|| (b[s][i] / gii, 1.0 / gii))?
+                    }
+                };
+                let sd = inflate * var.sqrt();
+                (sd <= RESOLVE * departure).then_some((s as f64, fit.values[i] + d, sd))
             })
             .collect();
         let (first, last) = (points.first()?.1, points.last()?.1);
-        walks(&points, departure).then(|| Drift { param: specs[i].param, first, last })
+        let drifts = match along {
+            Along::Time => walks(&points, departure),
+            Along::Speed => rises(&points, departure),
+        };
+        drifts.then(|| Drift { param: specs[i].param, along, first, last })
     })
 }
 
@@ -81,10 +137,45 @@ fn walks(pts: &[(f64, f64, f64)], departure: f64) -> bool {
     n >= 4 && trend(pts, departure) && trend(&pts[1..], departure) && trend(&pts[..n - 1], departure)
 }
 
-/// Whether `(x, estimate, σ)` points walk one way: a weighted linear trend of at least
-/// [`MIN_Z`] standard errors, every step along it or within two σ of flat, and a
-/// first-to-last change of at least [`MIN_SHARE`] of `departure`.
+/// Whether `(x, estimate, σ)` points walk one way: a steady line ([`line`]) of at least
+/// [`MIN_Z`] standard errors and a first-to-last change of at least [`MIN_SHARE`] of
+/// `departure`.
 fn trend(pts: &[(f64, f64, f64)], departure: f64) -> bool {
+    let Some(l) = line(pts) else { return false };
+    let (first, last) = (pts[0].1, pts[pts.len() - 1].1);
+    l.z.abs() >= MIN_Z && l.steady && (last - first) * l.slope.signum() >= MIN_SHARE * departure
+}
+
+/// Whether speed-band estimates `(band, estimate, σ)` change with speed: at least four
+/// bands on a steady line ([`line`]) of at least [`MIN_Z`] standard errors, also with the
+/// slowest or the fastest band left out, whose change over the bands is at least
+/// [`MIN_SHARE`] of `departure`. The change is the line's, not the end bands' own: an
+/// effect of the wrong form misfits every band a little, the slowest band is the least
+/// certain, and the end bands of a curve bend away from its chord.
+fn rises(pts: &[(f64, f64, f64)], departure: f64) -> bool {
+    let n = pts.len();
+    let Some(l) = line(pts) else { return false };
+    let along = |p: &[(f64, f64, f64)]| line(p).is_some_and(|m| m.z.abs() >= MIN_Z && m.z * l.z > 0.0);
+    let change = l.slope.abs() * (pts[n - 1].0 - pts[0].0);
+    n >= 4
+        && l.z.abs() >= MIN_Z
+        && l.steady
+        && change >= MIN_SHARE * departure
+        && along(&pts[1..])
+        && along(&pts[..n - 1])
+}
+
+/// A weighted straight line through `(x, estimate, σ)` points.
+struct Line {
+    slope: f64,
+    /// The slope in its standard errors.
+    z: f64,
+    /// Every step goes along the slope or lies within two σ of flat.
+    steady: bool,
+}
+
+/// The weighted least-squares [`Line`] through `pts`, if its x values differ.
+fn line(pts: &[(f64, f64, f64)]) -> Option<Line> {
     let w: Vec<f64> = pts.iter().map(|p| 1.0 / (p.2 * p.2)).collect();
     let sw: f64 = w.iter().sum();
     let xm = pts.iter().zip(&w).map(|(p, w)| w * p.0).sum::<f64>() / sw;
@@ -92,16 +183,14 @@ fn trend(pts: &[(f64, f64, f64)], departure: f64) -> bool {
     let sxx: f64 = pts.iter().zip(&w).map(|(p, w)| w * (p.0 - xm).powi(2)).sum();
     let sxy: f64 = pts.iter().zip(&w).map(|(p, w)| w * (p.0 - xm) * (p.1 - ym)).sum();
     if sxx.is_nan() || sxx <= 0.0 {
-        return false;
+        return None;
     }
     let slope = sxy / sxx;
-    let z = slope * sxx.sqrt();
     let steady = pts.windows(2).all(|s| {
         let step = s[1].1 - s[0].1;
         step * slope.signum() >= -2.0 * s[0].2.hypot(s[1].2)
     });
-    let (first, last) = (pts[0].1, pts[pts.len() - 1].1);
-    z.abs() >= MIN_Z && steady && (last - first) * slope.signum() >= MIN_SHARE * departure
+    Some(Line { slope, z: slope * sxx.sqrt(), steady })
 }
 
 /// `(A⁻¹)ᵢᵢ` of the `n × n` matrix `a`, if positive and finite.
@@ -129,6 +218,25 @@ fn stretches(p: &Prepared) -> Vec<usize> {
         start = end;
     }
     out
+}
+
+/// Per fit sample, its band of measured |motor speed|: 0 at rest (below [`REST`] of the
+/// largest), else 1 to [`STRETCHES`] by fifths of the moving samples, slowest first.
+/// `None` when the motor speed is not among the fitted channels.
+fn speed_bands(p: &Prepared) -> Option<Vec<usize>> {
+    let c = p.noise.iter().position(|(name, _)| *name == Channel::SuTMotorEnc.name())?;
+    let speed: Vec<f64> = p.idx.iter().map(|&t| p.meas[c].get(t).map_or(0.0, |v| v.abs())).collect();
+    let top = speed.iter().copied().fold(0.0, f64::max);
+    let mut moving: Vec<f64> = speed.iter().copied().filter(|&v| v > REST * top).collect();
+    moving.sort_by(f64::total_cmp);
+    let band = |v: f64| {
+        if v <= REST * top {
+            0
+        } else {
+            1 + (moving.partition_point(|&m| m < v) * STRETCHES / moving.len()).min(STRETCHES - 1)
+        }
+    };
+    Some(speed.iter().map(|&v| band(v)).collect())
 }
 
 #[cfg(test)]
@@ -198,6 +306,70 @@ mod tests {
         let d = case(&|t| 1.0 - 0.2 * t as f64 / n as f64).expect("a warm-up drifts");
         assert!(d.first > d.last && d.first - d.last > 0.1, "{d:?}");
         assert!(case(&|_| 0.9).is_none(), "a constant does not drift");
+    }
+
+    /// Speed-band estimates that grow band by band (a quadratic drag fitted by a viscous
+    /// one, as 1,002,555 gave them) change with speed; a constant's scatter does not, nor
+    /// does one odd slowest band, nor a change small against the value claimed.
+    #[test]
+    fn a_value_that_grows_band_by_band_changes_with_speed() {
+        let pts = |v: &[(f64, f64)]| -> Vec<(f64, f64, f64)> {
+            v.iter().enumerate().map(|(k, &(y, sd))| (k as f64 + 1.0, y, sd)).collect()
+        };
+        let drag = [(0.0746, 0.0119), (0.1108, 0.0045), (0.1342, 0.0024), (0.1605, 0.0010), (0.1576, 0.0114)];
+        assert!(rises(&pts(&drag), 0.1694));
+        assert!(!walks(&pts(&drag), 0.1694), "the time test's end-band rule would not see it");
+        let scatter = [(0.160, 0.004), (0.166, 0.004), (0.158, 0.004), (0.163, 0.004), (0.161, 0.004)];
+        assert!(!rises(&pts(&scatter), 0.16), "scatter");
+        let odd = [(0.05, 0.004), (0.160, 0.004), (0.161, 0.004), (0.160, 0.004), (0.161, 0.004)];
+        assert!(!rises(&pts(&odd), 0.16), "one odd slowest band");
+        let small = [(0.150, 0.001), (0.155, 0.001), (0.160, 0.001), (0.165, 0.001), (0.170, 0.001)];
+        assert!(!rises(&pts(&small), 0.16), "small against the value claimed");
+    }
+
+    /// A drag `k w²` on one channel fitted by a viscous `c w`: the estimates by band of
+    /// the measured motor speed rise with speed, and the drift names speed, not time; a
+    /// drag that is viscous does not change with speed.
+    #[test]
+    fn a_drag_of_the_wrong_form_changes_with_speed() {
+        let n = 1000;
+        let x: Vec<f64> = (0..n).map(|t| 0.3 + (t as f64 * 0.37).sin().abs()).collect();
+        let case = |drag: &dyn Fn(f64) -> f64| {
+            let noise = super::super::preparation::tests::gaussian(11, n);
+            let meas: Vec<f64> = (0..n).map(|t| drag(x[t]) + 0.01 * noise[t]).collect();
+            let c =
+                meas.iter().zip(&x).map(|(m, x)| m * x).sum::<f64>() / x.iter().map(|v| v * v).sum::<f64>();
+            let speed: Vec<f64> = x.iter().map(|v| 200.0 * v).collect();
+            let mut p = prepared(vec![speed, meas], 1);
+            p.noise = vec![(Channel::SuTMotorEnc.name(), 1.0), (Channel::IDc.name(), 0.01)];
+            let fit = Fit {
+                values: vec![c],
+                sim: vec![vec![0.0; n], x.iter().map(|v| (c * v) as f32).collect()],
+                jac: vec![vec![vec![0.0; n], x.clone()]],
+                energy: 0.0,
+                profile: Vec::new(),
+            };
+            let spec = ParamSpec {
+                effect: "differential_friction",
+                param: "viscous_nm_s_per_rad",
+                cause: "differential_friction",
+                neutral: 0.0,
+                delta: 0.01,
+                lower: 0.0,
+                upper: 10.0,
+                unit: "N m s/rad",
+                step_bias: model_core::effects::Step::Abs(0.0),
+            };
+            let sd = 0.01 / x.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let resid: Vec<Vec<f64>> = (0..2)
+                .map(|ch| (0..n).map(|t| p.meas[ch][t] - f64::from(fit.sim[ch][t])).collect())
+                .collect();
+            drift(&p, &resid, &fit, &[&spec], &[0.0], &[sd])
+        };
+        let d = case(&|w| w * w).expect("a quadratic drag changes with speed");
+        assert_eq!(d.along, Along::Speed, "{d:?}");
+        assert!(d.last > d.first + 0.5, "{d:?}");
+        assert!(case(&|w| 0.8 * w).is_none(), "a viscous drag fits at every speed");
     }
 
     fn prepared(meas: Vec<Vec<f64>>, runs: usize) -> Prepared {

@@ -34,7 +34,7 @@ use simrod_io::datadir::ModelData;
 
 use super::alias::map_aliases;
 use super::confounding::{confounded_groups, Leaders};
-pub use super::constancy::Drift;
+pub use super::constancy::{Along, Drift};
 use super::dynamics::{choose_dynamics, with_siblings};
 use super::empirical::{correct, Empirical, Inputs as EmpiricalInputs};
 use super::library::ParamSpec;

@@ -5,6 +5,7 @@
 
 use model_core::{Channel, Effects};
 
+use super::constancy::Along;
 use super::engine::{Candidate, ConfoundedGroup, Location, MapAlias, MapShape, Options, SetFit, VerdictKind};
 use super::library::{with_values, ParamSpec};
 use super::locate::{follows, region};
@@ -99,7 +100,10 @@ impl Evidence<'_> {
     /// absorbs part of what else is wrong on its channel ([`Self::absorbs`]).
     fn refusal_but_worse(&self, c: &Candidate) -> Option<String> {
         if let Some(d) = &c.drift {
-            return Some(format!("its {} drifts over the run", d.param));
+            return Some(match d.along {
+                Along::Time => format!("its {} drifts over the run", d.param),
+                Along::Speed => format!("its {} changes with speed", d.param),
+            });
         }
         let Some(f) = self.after(c.effect) else { return Some("it was not refitted".into()) };
         if self.p.e0 - f.energy < self.o.min_reduction_of_noise * self.p.e_noise && !self.clears_structure(c)
@@ -618,10 +622,16 @@ fn drifting(ev: &Evidence, lead: Option<&Candidate>) -> Option<String> {
     let stop = lead.map(|l| l.effect);
     let c = ev.ranking.iter().take_while(|c| Some(c.effect) != stop).find(|c| c.drift.is_some())?;
     let d = c.drift.as_ref()?;
-    Some(format!(
-        "{} fits only as a value that drifts over the run ({} {:.4} in its first fifth, {:.4} in its last): a time-varying effect (a warm-up, a thermal drift), not a constant one",
-        c.effect, d.param, d.first, d.last
-    ))
+    Some(match d.along {
+        Along::Time => format!(
+            "{} fits only as a value that drifts over the run ({} {:.4} in its first fifth, {:.4} in its last): a time-varying effect (a warm-up, a thermal drift), not a constant one",
+            c.effect, d.param, d.first, d.last
+        ),
+        Along::Speed => format!(
+            "{} fits only as a value that changes with speed ({} {:.4} in the slowest fifth of the moving samples, {:.4} in the fastest): what is wrong depends on speed otherwise than {} does, so it only averages an effect the library lacks",
+            c.effect, d.param, d.first, d.last, c.effect
+        ),
+    })
 }
 
 /// `effect (param = value ± 95 % half-width unit, …)`.
