@@ -58,9 +58,12 @@ pub enum Along {
     Time,
     /// The operating speed: fifths of the moving fit samples by measured |motor speed|.
     Speed,
+    /// The load: fifths of the loaded fit samples by measured |axle torque| (both flanges).
+    Torque,
 }
 
-/// Below this share of the largest |motor speed| the bench is at rest: no speed band.
+/// Below this share of the largest |motor speed| (|axle torque|) the bench is at rest
+/// (unloaded): no band.
 const REST: f64 = 0.05;
 
 /// The first parameter of `fit` (residual `resid[channel][fit sample]`, σ from noise
@@ -75,7 +78,7 @@ pub(super) fn drift(
     std: &[f64],
 ) -> Option<Drift> {
     let over = |along| drift_along(p, resid, fit, specs, starts, std, along);
-    over(Along::Time).or_else(|| over(Along::Speed))
+    over(Along::Time).or_else(|| over(Along::Speed)).or_else(|| over(Along::Torque))
 }
 
 /// The first parameter of `fit` whose estimates, part by part along `along`, walk
@@ -97,7 +100,8 @@ fn drift_along(
 ) -> Option<Drift> {
     let (part, parts, skip) = match along {
         Along::Time => (stretches(p), STRETCHES, usize::MAX),
-        Along::Speed => (speed_bands(p)?, STRETCHES + 1, 0),
+        Along::Speed => (bands(p, &[Channel::SuTMotorEnc])?, STRETCHES + 1, 0),
+        Along::Torque => (bands(p, &[Channel::CKistlerL, Channel::CKistlerR])?, STRETCHES + 1, 0),
     };
     let (g, b) = normal_equations_by(&p.weights, &fit.jac, |c, t| resid[c][t], parts, |_, t| part[t]);
     let n = fit.jac.len();
@@ -112,7 +116,7 @@ fn drift_along(
             .filter_map(|s| {
                 let (d, var) = match along {
                     Along::Time => (solve_spd(&g[s], &b[s], 1e-12)?[i], inverse_diagonal(&g[s], n, i)?),
-                    Along::Speed => {
+                    Along::Speed | Along::Torque => {
                         let gii = g[s][i * n + i];
                         (gii > 0.0).then(|| (b[s][i] / gii, 1.0 / gii))?
                     }
@@ -124,7 +128,7 @@ fn drift_along(
         let (first, last) = (points.first()?.1, points.last()?.1);
         let drifts = match along {
             Along::Time => walks(&points, departure),
-            Along::Speed => rises(&points, departure),
+            Along::Speed | Along::Torque => rises(&points, departure),
         };
         drifts.then(|| Drift { param: specs[i].param, along, first, last })
     })
@@ -220,23 +224,30 @@ fn stretches(p: &Prepared) -> Vec<usize> {
     out
 }
 
-/// Per fit sample, its band of measured |motor speed|: 0 at rest (below [`REST`] of the
-/// largest), else 1 to [`STRETCHES`] by fifths of the moving samples, slowest first.
-/// `None` when the motor speed is not among the fitted channels.
-fn speed_bands(p: &Prepared) -> Option<Vec<usize>> {
-    let c = p.noise.iter().position(|(name, _)| *name == Channel::SuTMotorEnc.name())?;
-    let speed: Vec<f64> = p.idx.iter().map(|&t| p.meas[c].get(t).map_or(0.0, |v| v.abs())).collect();
-    let top = speed.iter().copied().fold(0.0, f64::max);
-    let mut moving: Vec<f64> = speed.iter().copied().filter(|&v| v > REST * top).collect();
-    moving.sort_by(f64::total_cmp);
+/// Per fit sample, its band of the measured `of` channels' |sum|: 0 below [`REST`] of
+/// the largest (at rest, unloaded), else 1 to [`STRETCHES`] by fifths of the rest,
+/// smallest first. `None` when a channel is not among the fitted ones.
+fn bands(p: &Prepared, of: &[Channel]) -> Option<Vec<usize>> {
+    let cols: Vec<&Vec<f64>> = of
+        .iter()
+        .map(|ch| p.noise.iter().position(|(name, _)| *name == ch.name()).map(|c| &p.meas[c]))
+        .collect::<Option<_>>()?;
+    let level: Vec<f64> = p
+        .idx
+        .iter()
+        .map(|&t| cols.iter().map(|m| m.get(t).copied().unwrap_or(0.0)).sum::<f64>().abs())
+        .collect();
+    let top = level.iter().copied().fold(0.0, f64::max);
+    let mut active: Vec<f64> = level.iter().copied().filter(|&v| v > REST * top).collect();
+    active.sort_by(f64::total_cmp);
     let band = |v: f64| {
         if v <= REST * top {
             0
         } else {
-            1 + (moving.partition_point(|&m| m < v) * STRETCHES / moving.len()).min(STRETCHES - 1)
+            1 + (active.partition_point(|&m| m < v) * STRETCHES / active.len()).min(STRETCHES - 1)
         }
     };
-    Some(speed.iter().map(|&v| band(v)).collect())
+    Some(level.iter().map(|&v| band(v)).collect())
 }
 
 #[cfg(test)]
@@ -332,44 +343,62 @@ mod tests {
     /// drag that is viscous does not change with speed.
     #[test]
     fn a_drag_of_the_wrong_form_changes_with_speed() {
-        let n = 1000;
-        let x: Vec<f64> = (0..n).map(|t| 0.3 + (t as f64 * 0.37).sin().abs()).collect();
-        let case = |drag: &dyn Fn(f64) -> f64| {
-            let noise = super::super::preparation::tests::gaussian(11, n);
-            let meas: Vec<f64> = (0..n).map(|t| drag(x[t]) + 0.01 * noise[t]).collect();
-            let c =
-                meas.iter().zip(&x).map(|(m, x)| m * x).sum::<f64>() / x.iter().map(|v| v * v).sum::<f64>();
-            let speed: Vec<f64> = x.iter().map(|v| 200.0 * v).collect();
-            let mut p = prepared(vec![speed, meas], 1);
-            p.noise = vec![(Channel::SuTMotorEnc.name(), 1.0), (Channel::IDc.name(), 0.01)];
-            let fit = Fit {
-                values: vec![c],
-                sim: vec![vec![0.0; n], x.iter().map(|v| (c * v) as f32).collect()],
-                jac: vec![vec![vec![0.0; n], x.clone()]],
-                energy: 0.0,
-                profile: Vec::new(),
-            };
-            let spec = ParamSpec {
-                effect: "differential_friction",
-                param: "viscous_nm_s_per_rad",
-                cause: "differential_friction",
-                neutral: 0.0,
-                delta: 0.01,
-                lower: 0.0,
-                upper: 10.0,
-                unit: "N m s/rad",
-                step_bias: model_core::effects::Step::Abs(0.0),
-            };
-            let sd = 0.01 / x.iter().map(|v| v * v).sum::<f64>().sqrt();
-            let resid: Vec<Vec<f64>> = (0..2)
-                .map(|ch| (0..n).map(|t| p.meas[ch][t] - f64::from(fit.sim[ch][t])).collect())
-                .collect();
-            drift(&p, &resid, &fit, &[&spec], &[0.0], &[sd])
-        };
+        let case = |drag: &dyn Fn(f64) -> f64| one_scale_fitted(&[(Channel::SuTMotorEnc, 200.0)], 0.0, drag);
         let d = case(&|w| w * w).expect("a quadratic drag changes with speed");
         assert_eq!(d.along, Along::Speed, "{d:?}");
         assert!(d.last > d.first + 0.5, "{d:?}");
         assert!(case(&|w| 0.8 * w).is_none(), "a viscous drag fits at every speed");
+    }
+
+    /// A current that is its torque plus a constant, fitted as a gain of the torque (a
+    /// sensor gain standing in for a shifted map): the gain each band of the measured
+    /// axle torque asks for falls with the load, and the drift names the load torque; a
+    /// true gain does not change with it.
+    #[test]
+    fn a_gain_standing_in_for_a_shift_changes_with_the_load_torque() {
+        let flanges = [(Channel::CKistlerL, 20.0), (Channel::CKistlerR, 20.0)];
+        let case = |current: &dyn Fn(f64) -> f64| one_scale_fitted(&flanges, 1.0, current);
+        let d = case(&|t| t + 0.3).expect("a shift fitted as a gain changes with the load");
+        assert_eq!(d.along, Along::Torque, "{d:?}");
+        assert!(d.first > d.last + 0.3, "{d:?}");
+        assert!(case(&|t| 1.05 * t).is_none(), "a gain fits at every load");
+    }
+
+    /// I_DC measured as `truth(x)` (noise σ 0.01) and fitted as `c x`, with `x` recorded
+    /// on the operating channels `op` (each `x` times its factor), the model's value
+    /// before the fit `start`: the drift test's answer.
+    fn one_scale_fitted(op: &[(Channel, f64)], start: f64, truth: &dyn Fn(f64) -> f64) -> Option<Drift> {
+        let n = 1000;
+        let x: Vec<f64> = (0..n).map(|t| 0.3 + (t as f64 * 0.37).sin().abs()).collect();
+        let noise = super::super::preparation::tests::gaussian(11, n);
+        let meas: Vec<f64> = (0..n).map(|t| truth(x[t]) + 0.01 * noise[t]).collect();
+        let c = meas.iter().zip(&x).map(|(m, x)| m * x).sum::<f64>() / x.iter().map(|v| v * v).sum::<f64>();
+        let mut series: Vec<Vec<f64>> = op.iter().map(|(_, k)| x.iter().map(|v| k * v).collect()).collect();
+        series.push(meas);
+        let mut p = prepared(series, 1);
+        p.noise = op.iter().map(|(ch, _)| (ch.name(), 1.0)).chain([(Channel::IDc.name(), 0.01)]).collect();
+        let quiet = vec![0.0; n];
+        let mut sim: Vec<Vec<f32>> = op.iter().map(|_| vec![0.0; n]).collect();
+        sim.push(x.iter().map(|v| (c * v) as f32).collect());
+        let mut jac: Vec<Vec<f64>> = op.iter().map(|_| quiet.clone()).collect();
+        jac.push(x.clone());
+        let fit = Fit { values: vec![c], sim, jac: vec![jac], energy: 0.0, profile: Vec::new() };
+        let spec = ParamSpec {
+            effect: "differential_friction",
+            param: "viscous_nm_s_per_rad",
+            cause: "differential_friction",
+            neutral: 0.0,
+            delta: 0.01,
+            lower: 0.0,
+            upper: 10.0,
+            unit: "N m s/rad",
+            step_bias: model_core::effects::Step::Abs(0.0),
+        };
+        let sd = 0.01 / x.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let resid: Vec<Vec<f64>> = (0..=op.len())
+            .map(|ch| (0..n).map(|t| p.meas[ch][t] - f64::from(fit.sim[ch][t])).collect())
+            .collect();
+        drift(&p, &resid, &fit, &[&spec], &[start], &[sd])
     }
 
     fn prepared(meas: Vec<Vec<f64>>, runs: usize) -> Prepared {

@@ -103,6 +103,7 @@ impl Evidence<'_> {
             return Some(match d.along {
                 Along::Time => format!("its {} drifts over the run", d.param),
                 Along::Speed => format!("its {} changes with speed", d.param),
+                Along::Torque => format!("its {} changes with the load torque", d.param),
             });
         }
         let Some(f) = self.after(c.effect) else { return Some("it was not refitted".into()) };
@@ -629,6 +630,10 @@ fn drifting(ev: &Evidence, lead: Option<&Candidate>) -> Option<String> {
         ),
         Along::Speed => format!(
             "{} fits only as a value that changes with speed ({} {:.4} in the slowest fifth of the moving samples, {:.4} in the fastest): what is wrong depends on speed otherwise than {} does, so it only averages an effect the library lacks",
+            c.effect, d.param, d.first, d.last, c.effect
+        ),
+        Along::Torque => format!(
+            "{} fits only as a value that changes with the load torque ({} {:.4} in the least loaded fifth of the loaded samples, {:.4} in the most): what is wrong depends on the load otherwise than {} does, so it only averages it (a map, or an effect the library lacks)",
             c.effect, d.param, d.first, d.last, c.effect
         ),
     })
