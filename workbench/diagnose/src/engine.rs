@@ -507,10 +507,9 @@ fn tables(twin: &dyn Twin, ev: &Evidence, v: Verdict) -> (Verdict, Option<Empiri
                         _ => (table_beats_library(ev, &v, e.removes()), Some(e)),
                     }
                 }
-                _ if left_after > o.noise_like_ratio => {
-                    let e = fit(v.proposed);
-                    (v, e)
-                }
+                // No table on top of a proposal: what the proposal leaves is diagnosed
+                // again next round with it in place, where a second library effect
+                // gets its chance before a table absorbs it.
                 _ => (v, None),
             }
         }
