@@ -68,7 +68,7 @@ const REST: f64 = 0.05;
 
 /// The first parameter of `fit` (residual `resid[channel][fit sample]`, σ from noise
 /// alone `std`, the sandwich's) that drifts over the run, or else that changes with
-/// speed ([`Along`]).
+/// speed or with the load ([`Along`]).
 pub(super) fn drift(
     p: &Prepared,
     resid: &[Vec<f64>],
@@ -77,61 +77,65 @@ pub(super) fn drift(
     starts: &[f64],
     std: &[f64],
 ) -> Option<Drift> {
-    let over = |along| drift_along(p, resid, fit, specs, starts, std, along);
-    over(Along::Time).or_else(|| over(Along::Speed)).or_else(|| over(Along::Torque))
+    let r = Refitted { p, resid, fit, specs, starts, std };
+    [Along::Time, Along::Speed, Along::Torque].into_iter().find_map(|along| r.drift_along(along))
 }
 
-/// The first parameter of `fit` whose estimates, part by part along `along`, walk
-/// ([`walks`]): they are monotone within their noise, their linear trend is at least
-/// [`MIN_Z`] standard errors and their first-to-last change is at least [`MIN_SHARE`] of
-/// the departure from `starts` — also with the first or the last part left out, so that
-/// one odd stretch (a start-up at low speed) is not taken for a drift. Over time each
-/// stretch's estimate is joint (one Gauss–Newton step on its normal equations); over
-/// speed it is the parameter's alone with the others held at the optimum, because
-/// within one band of speeds a Coulomb and a viscous friction cannot be told apart.
-fn drift_along(
-    p: &Prepared,
-    resid: &[Vec<f64>],
-    fit: &Fit,
-    specs: &[&ParamSpec],
-    starts: &[f64],
-    std: &[f64],
-    along: Along,
-) -> Option<Drift> {
-    let (part, parts, skip) = match along {
-        Along::Time => (stretches(p), STRETCHES, usize::MAX),
-        Along::Speed => (bands(p, &[Channel::SuTMotorEnc])?, STRETCHES + 1, 0),
-        Along::Torque => (bands(p, &[Channel::CKistlerL, Channel::CKistlerR])?, STRETCHES + 1, 0),
-    };
-    let (g, b) = normal_equations_by(&p.weights, &fit.jac, |c, t| resid[c][t], parts, |_, t| part[t]);
-    let n = fit.jac.len();
-    let total: Vec<f64> = (0..n * n).map(|x| g.iter().map(|gs| gs[x]).sum()).collect();
-    (0..n).find_map(|i| {
-        let naive = inverse_diagonal(&total, n, i)?.sqrt();
-        // The sandwich's inflation over the white-noise σ, applied to every part.
-        let inflate = (std.get(i)? / naive).max(1.0);
-        let departure = (fit.values[i] - starts.get(i)?).abs();
-        let points: Vec<(f64, f64, f64)> = (0..parts)
-            .filter(|&s| s != skip)
-            .filter_map(|s| {
-                let (d, var) = match along {
-                    Along::Time => (solve_spd(&g[s], &b[s], 1e-12)?[i], inverse_diagonal(&g[s], n, i)?),
-                    Along::Speed | Along::Torque => {
-                        let gii = g[s][i * n + i];
-                        (gii > 0.0).then(|| (b[s][i] / gii, 1.0 / gii))?
-                    }
-                };
-                let sd = inflate * var.sqrt();
-                (sd <= RESOLVE * departure).then_some((s as f64, fit.values[i] + d, sd))
-            })
-            .collect();
-        let (first, last) = (points.first()?.1, points.last()?.1);
-        let drifts = match along {
-            Along::Time => walks(&points, departure),
-            Along::Speed | Along::Torque => rises(&points, departure),
+/// What [`drift`] tests: a refit, its residual and its parameters' σ.
+struct Refitted<'a> {
+    p: &'a Prepared,
+    resid: &'a [Vec<f64>],
+    fit: &'a Fit,
+    specs: &'a [&'a ParamSpec],
+    starts: &'a [f64],
+    std: &'a [f64],
+}
+
+impl Refitted<'_> {
+    /// The first parameter whose estimates, part by part along `along`, change one way
+    /// beyond their noise and by a share of its departure from where it started: over
+    /// time they walk ([`walks`]), over speed or load bands they rise ([`rises`]). Over
+    /// time each stretch's estimate is joint (one Gauss–Newton step on its normal
+    /// equations); over bands it is the parameter's alone with the others held at the
+    /// optimum, because within one band of speeds a Coulomb and a viscous friction
+    /// cannot be told apart.
+    fn drift_along(&self, along: Along) -> Option<Drift> {
+        let Self { p, resid, fit, specs, starts, std } = *self;
+        let (part, parts, skip) = match along {
+            Along::Time => (stretches(p), STRETCHES, usize::MAX),
+            Along::Speed => (bands(p, &[Channel::SuTMotorEnc])?, STRETCHES + 1, 0),
+            Along::Torque => (bands(p, &[Channel::CKistlerL, Channel::CKistlerR])?, STRETCHES + 1, 0),
         };
-        drifts.then(|| Drift { param: specs[i].param, along, first, last })
-    })
+        let (g, b) = normal_equations_by(&p.weights, &fit.jac, |c, t| resid[c][t], parts, |_, t| part[t]);
+        let n = fit.jac.len();
+        let total: Vec<f64> = (0..n * n).map(|x| g.iter().map(|gs| gs[x]).sum()).collect();
+        (0..n).find_map(|i| {
+            let naive = inverse_diagonal(&total, n, i)?.sqrt();
+            // The sandwich's inflation over the white-noise σ, applied to every part.
+            let inflate = (std.get(i)? / naive).max(1.0);
+            let departure = (fit.values[i] - starts.get(i)?).abs();
+            let points: Vec<(f64, f64, f64)> = (0..parts)
+                .filter(|&s| s != skip)
+                .filter_map(|s| {
+                    let (d, var) = match along {
+                        Along::Time => (solve_spd(&g[s], &b[s], 1e-12)?[i], inverse_diagonal(&g[s], n, i)?),
+                        Along::Speed | Along::Torque => {
+                            let gii = g[s][i * n + i];
+                            (gii > 0.0).then(|| (b[s][i] / gii, 1.0 / gii))?
+                        }
+                    };
+                    let sd = inflate * var.sqrt();
+                    (sd <= RESOLVE * departure).then_some((s as f64, fit.values[i] + d, sd))
+                })
+                .collect();
+            let (first, last) = (points.first()?.1, points.last()?.1);
+            let drifts = match along {
+                Along::Time => walks(&points, departure),
+                Along::Speed | Along::Torque => rises(&points, departure),
+            };
+            drifts.then(|| Drift { param: specs[i].param, along, first, last })
+        })
+    }
 }
 
 /// Whether at least four `(x, estimate, σ)` points walk one way ([`trend`]), also with
