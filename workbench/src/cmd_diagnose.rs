@@ -642,8 +642,8 @@ fn kind_name(k: &VerdictKind) -> &'static str {
 /// {name: value}, "uncertainty": {name: std}, "ci95": {name: [lo, hi]}, "units",
 /// "error_reduction", "predicted_reduction", "confirmed_reduction", "significant",
 /// "cause": "sensor"|"physical", "moves": [channel], "leaves_structure", "drift": null or
-/// {"param", "along": "time"|"speed", "first", "last"}, "map_alias": null or {"file", "shape", "value", "share"},
-/// "channels": [...]}], "selected", "confounded", "unexplained", "noise": {channel: σ},
+/// {"param", "along": "time"|"speed"|"torque", "first", "last"}, "map_alias": null or
+/// {"file", "shape", "value", "share"}, "channels": [...]}], "selected", "confounded", "unexplained", "noise": {channel: σ},
 /// "proposed_effects": TOML text or null, "setup", "timing_s"}`. NaN becomes null.
 pub fn to_json(d: &Diagnosed) -> Value {
     let g = &d.diagnosis;

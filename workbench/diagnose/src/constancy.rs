@@ -38,14 +38,15 @@ const MIN_Z: f64 = 5.0;
 /// departure from where it started: a drift that matters against what is claimed.
 const MIN_SHARE: f64 = 0.5;
 
-/// A parameter whose estimate changes steadily over the course of a run, or with speed.
+/// A parameter whose estimate changes steadily over the course of a run, with speed or
+/// with the load.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Drift {
     /// Parameter name.
     pub param: &'static str,
     /// What it changes along.
     pub along: Along,
-    /// Its estimate from the first and from the last stretch (or speed band) alone.
+    /// Its estimate from the first and from the last stretch (or band) alone.
     pub first: f64,
     pub last: f64,
 }
@@ -60,6 +61,17 @@ pub enum Along {
     Speed,
     /// The load: fifths of the loaded fit samples by measured |axle torque| (both flanges).
     Torque,
+}
+
+impl Along {
+    /// What a parameter that fails the test does: "drifts over the run", ….
+    pub fn what(self) -> &'static str {
+        match self {
+            Self::Time => "drifts over the run",
+            Self::Speed => "changes with speed",
+            Self::Torque => "changes with the load torque",
+        }
+    }
 }
 
 /// Below this share of the largest |motor speed| (|axle torque|) the bench is at rest
@@ -101,11 +113,14 @@ impl Refitted<'_> {
     /// cannot be told apart.
     fn drift_along(&self, along: Along) -> Option<Drift> {
         let Self { p, resid, fit, specs, starts, std } = *self;
-        let (part, parts, skip) = match along {
-            Along::Time => (stretches(p), STRETCHES, usize::MAX),
-            Along::Speed => (bands(p, &[Channel::SuTMotorEnc])?, STRETCHES + 1, 0),
-            Along::Torque => (bands(p, &[Channel::CKistlerL, Channel::CKistlerR])?, STRETCHES + 1, 0),
+        // The parts each fit sample falls in, and those that count (a band's part 0 is the
+        // bench at rest).
+        let (part, counted) = match along {
+            Along::Time => (stretches(p), 0..STRETCHES),
+            Along::Speed => (bands(p, &[Channel::SuTMotorEnc])?, 1..STRETCHES + 1),
+            Along::Torque => (bands(p, &[Channel::CKistlerL, Channel::CKistlerR])?, 1..STRETCHES + 1),
         };
+        let parts = counted.end;
         let (g, b) = normal_equations_by(&p.weights, &fit.jac, |c, t| resid[c][t], parts, |_, t| part[t]);
         let n = fit.jac.len();
         let total: Vec<f64> = (0..n * n).map(|x| g.iter().map(|gs| gs[x]).sum()).collect();
@@ -114,8 +129,8 @@ impl Refitted<'_> {
             // The sandwich's inflation over the white-noise σ, applied to every part.
             let inflate = (std.get(i)? / naive).max(1.0);
             let departure = (fit.values[i] - starts.get(i)?).abs();
-            let points: Vec<(f64, f64, f64)> = (0..parts)
-                .filter(|&s| s != skip)
+            let points: Vec<(f64, f64, f64)> = counted
+                .clone()
                 .filter_map(|s| {
                     let (d, var) = match along {
                         Along::Time => (solve_spd(&g[s], &b[s], 1e-12)?[i], inverse_diagonal(&g[s], n, i)?),
@@ -154,7 +169,7 @@ fn trend(pts: &[(f64, f64, f64)], departure: f64) -> bool {
     l.z.abs() >= MIN_Z && l.steady && (last - first) * l.slope.signum() >= MIN_SHARE * departure
 }
 
-/// Whether speed-band estimates `(band, estimate, σ)` change with speed: at least four
+/// Whether band estimates `(band, estimate, σ)` change with speed (load): at least four
 /// bands on a steady line ([`line`]) of at least [`MIN_Z`] standard errors, also with the
 /// slowest or the fastest band left out, whose change over the bands is at least
 /// [`MIN_SHARE`] of `departure`. The change is the line's, not the end bands' own: an

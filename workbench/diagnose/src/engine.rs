@@ -462,10 +462,14 @@ fn stages(
     })
 }
 
-/// Stage 8: when the library leaves error, an empirical correction of the maps. Fitted
-/// first on the current model alone: when it explains clearly more on held-out data than
-/// the library's proposal, the proposal is withdrawn ([`table_beats_library`]); else it
-/// is fitted on top of the proposal, for what the proposal leaves.
+/// Stage 8: when the library leaves error, an empirical correction of the maps, fitted
+/// first on the current model alone. An unexplained residual is offered the table (or a
+/// candidate refused only for making a channel worse, with a table on top of it:
+/// [`beside_refused`]). A partial proposal is withdrawn when the table explains clearly
+/// more on held-out data ([`table_beats_library`]), unless the two together remove
+/// clearly more than the table alone; otherwise it gets no table: what it leaves is
+/// diagnosed again next round with it in place, where a second library effect gets its
+/// chance before a table absorbs it.
 fn tables(twin: &dyn Twin, ev: &Evidence, v: Verdict) -> (Verdict, Option<Empirical>) {
     let on = |fx: Effects, against_current: bool| {
         correct(&EmpiricalInputs { twin, p: ev.p, o: ev.o, fx, channels: twin.channels(), against_current })
@@ -488,29 +492,19 @@ fn tables(twin: &dyn Twin, ev: &Evidence, v: Verdict) -> (Verdict, Option<Empiri
             }
         }
         VerdictKind::Partial => {
-            let alone = if can_beat { fit(o.base) } else { None };
-            match alone {
-                // The table's worse figure, held-out (linear) or confirmed (simulator).
-                Some(e) if e.refused.is_none() && e.removes() >= v.removed + PREFER_TABLE_MARGIN => {
-                    // The proposal may still stand beside a table: it does when the two
-                    // together remove clearly more than the table alone (a physical
-                    // effect the maps cannot mimic, next to a wrong map).
-                    let beside = if left_after > o.noise_like_ratio { fit(v.proposed) } else { None };
-                    match beside {
-                        Some(t)
-                            if t.refused.is_none()
-                                && v.removed + (1.0 - v.removed) * t.removes()
-                                    >= e.removes() + KEEP_BESIDE_TABLE =>
-                        {
-                            (v, Some(t))
-                        }
-                        _ => (table_beats_library(ev, &v, e.removes()), Some(e)),
-                    }
-                }
-                // No table on top of a proposal: what the proposal leaves is diagnosed
-                // again next round with it in place, where a second library effect
-                // gets its chance before a table absorbs it.
-                _ => (v, None),
+            // The table's worse figure, held-out (linear) or confirmed (simulator).
+            let beats = |e: &Empirical| e.refused.is_none() && e.removes() >= v.removed + PREFER_TABLE_MARGIN;
+            let Some(e) = can_beat.then(|| fit(o.base)).flatten().filter(beats) else { return (v, None) };
+            // The proposal may still stand beside the table: it does when the two together
+            // remove clearly more than the table alone (a physical effect the maps cannot
+            // mimic, next to a wrong map).
+            let beside = if left_after > o.noise_like_ratio { fit(v.proposed) } else { None };
+            match beside.filter(|t| {
+                t.refused.is_none()
+                    && v.removed + (1.0 - v.removed) * t.removes() >= e.removes() + KEEP_BESIDE_TABLE
+            }) {
+                Some(t) => (v, Some(t)),
+                None => (table_beats_library(ev, &v, e.removes()), Some(e)),
             }
         }
         _ => (v, None),

@@ -100,11 +100,7 @@ impl Evidence<'_> {
     /// absorbs part of what else is wrong on its channel ([`Self::absorbs`]).
     fn refusal_but_worse(&self, c: &Candidate) -> Option<String> {
         if let Some(d) = &c.drift {
-            return Some(match d.along {
-                Along::Time => format!("its {} drifts over the run", d.param),
-                Along::Speed => format!("its {} changes with speed", d.param),
-                Along::Torque => format!("its {} changes with the load torque", d.param),
-            });
+            return Some(format!("its {} {}", d.param, d.along.what()));
         }
         let Some(f) = self.after(c.effect) else { return Some("it was not refitted".into()) };
         if self.p.e0 - f.energy < self.o.min_reduction_of_noise * self.p.e_noise && !self.clears_structure(c)
@@ -862,6 +858,13 @@ mod tests {
         );
     }
 
+    /// `p` with the current model's structure windows as the diagnosis tests them (here
+    /// on every sample, the sensors without resolution).
+    fn tested(p: Prepared, dt: f64) -> Prepared {
+        let base_windows = windows_in(&p, &vec![0.0; p.meas.len()], dt, &p.base_sim);
+        Prepared { base_windows, ..p }
+    }
+
     /// The evidence of a single refitted candidate (`cands`, ranked as given) on `p`,
     /// with no set and nothing confounded, the sensors without resolution.
     fn one_candidate<'a>(
@@ -909,9 +912,7 @@ mod tests {
         };
         let quiet = Prepared::single_run(meas.clone(), noise.clone(), sim(false));
         let res = [0.0; 2];
-        // The current model's windows as the diagnosis tests them (here on every sample).
-        let base_windows = windows_in(&quiet, &res, dt, &quiet.base_sim);
-        let p = Prepared { base_windows, ..Prepared::single_run(meas, noise, sim(false)) };
+        let p = tested(Prepared::single_run(meas, noise, sim(false)), dt);
         let o = Options::default();
         let s = supply_resistance_only(&o);
         let after = sim(true);
@@ -955,9 +956,7 @@ mod tests {
             let v = |k: usize| if fixed { dip(k) } else { 24.0 };
             vec![(0..n).map(|k| v(k) as f32).collect(), vec![100.0f32; n]]
         };
-        let res = [0.0; 2];
-        let plain = Prepared::single_run(meas.clone(), noise.clone(), sim(false));
-        let p = Prepared { base_windows: windows_in(&plain, &res, dt, &plain.base_sim), ..plain };
+        let p = tested(Prepared::single_run(meas, noise, sim(false)), dt);
         let o = Options::default();
         let s = supply_resistance_only(&o);
         let after = sim(true);
