@@ -37,8 +37,9 @@
 //!   printed too, and how many false effects were first claimed on top of an empirical
 //!   table (in a round whose model already ran on a corrected data directory);
 //! - **found**: a hidden library effect that moves a channel of the scenario's run (the
-//!   truth file's `moves`, [`excited_ids`]) is in the final file; its
-//!   95 % interval, in the round that first named it, holds the truth (coverage).
+//!   truth file's `moves`, [`excited_ids`]) is in the final file; the 95 % interval
+//!   stated beside the value that file holds (the last round naming it) holds the truth
+//!   (coverage, [`covered`]).
 //!
 //! Seeds: the proof uses seeds from 1,000,000 on, never used while developing (tuning
 //! used 500,000 on); `--first` moves them. `--check` exits 1 when a target is missed
@@ -539,10 +540,23 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
     })
 }
 
-/// Whether the 95 % interval of `id`.`param` in the first round whose selection names
-/// it holds `truth`.
+/// Whether the 95 % interval stated for `id`.`param` holds `truth`: the interval the
+/// verdict stated beside the value the final effect file holds, i.e. in the last round
+/// whose verdict names the effect (`stated`: a set's joint refit, not a member's own refit
+/// in the ranking; that round's proposal wrote the value, and a later round keeps it).
+/// Rounds kept before the JSON had `stated`: the first round naming it, its ranking entry.
 fn covered(rounds: &[Value], id: &str, param: &str, truth: f64) -> Option<bool> {
     let label = |e: &str| e == id || e.strip_prefix(id).is_some_and(|r| r.starts_with('.'));
+    let inside = |ci: &Value| -> Option<bool> {
+        let (lo, hi) = (ci[param][0].as_f64()?, ci[param][1].as_f64()?);
+        Some(lo <= truth && truth <= hi)
+    };
+    if rounds.iter().any(|j| j.get("stated").is_some()) {
+        return rounds.iter().rev().find_map(|j| {
+            let st = j["stated"].as_array()?.iter().find(|x| x["effect"].as_str().is_some_and(label))?;
+            inside(&st["ci95"])
+        });
+    }
     for j in rounds {
         let named = j["selected"]
             .as_array()
@@ -550,9 +564,8 @@ fn covered(rounds: &[Value], id: &str, param: &str, truth: f64) -> Option<bool> 
         let lead =
             j["ranking"].as_array().and_then(|r| r.iter().find(|x| x["effect"].as_str().is_some_and(label)));
         if let (true, Some(l)) = (named || j["kind"] == "missing", lead) {
-            let ci = &l["ci95"][param];
-            if let (Some(lo), Some(hi)) = (ci[0].as_f64(), ci[1].as_f64()) {
-                return Some(lo <= truth && truth <= hi);
+            if let Some(ok) = inside(&l["ci95"]) {
+                return Some(ok);
             }
         }
     }

@@ -21,6 +21,7 @@ use model_core::{Channel, Effects};
 use serde_json::{json, Map, Value};
 
 use crate::compare::regions;
+use crate::diagnose::engine::FittedParam;
 use crate::diagnose::twin::{fitted_channels, BuiltinProbe, Campaign, RecordedTwin};
 use crate::diagnose::{self, Diagnosis, Options, VerdictKind};
 use crate::effects_file::{format_effects, summarize_effects, write_effects};
@@ -643,23 +644,30 @@ fn kind_name(k: &VerdictKind) -> &'static str {
 /// "error_reduction", "predicted_reduction", "confirmed_reduction", "significant",
 /// "cause": "sensor"|"physical", "moves": [channel], "leaves_structure", "drift": null or
 /// {"param", "along": "time"|"speed"|"torque", "first", "last"}, "map_alias": null or
-/// {"file", "shape", "value", "share"}, "channels": [...]}], "selected", "confounded", "unexplained", "noise": {channel: σ},
+/// {"file", "shape", "value", "share"}, "channels": [...]}], "selected", "stated": [{"effect",
+/// "params", "uncertainty", "ci95", "units"}] (what the verdict names, with the values it
+/// proposes: a set's joint refit, not its members' own in the ranking), "confounded",
+/// "unexplained", "noise": {channel: σ},
 /// "proposed_effects": TOML text or null, "setup", "timing_s"}`. NaN becomes null.
 pub fn to_json(d: &Diagnosed) -> Value {
     let g = &d.diagnosis;
     let s = &d.setup;
     let obj = |it: Vec<(String, Value)>| Value::Object(it.into_iter().collect::<Map<String, Value>>());
+    // One parameter field of every parameter, by name.
+    let field = |ps: &[FittedParam], f: &dyn Fn(&FittedParam) -> Value| {
+        obj(ps.iter().map(|p| (p.name.to_string(), f(p))).collect())
+    };
     let ranking: Vec<Value> = g
         .ranking
         .iter()
         .map(|c| {
             json!({
                 "effect": c.effect,
-                "params": obj(c.params.iter().map(|p| (p.name.to_string(), json!(p.value))).collect()),
-                "uncertainty": obj(c.params.iter().map(|p| (p.name.to_string(), json!(p.std))).collect()),
-                "ci95": obj(c.params.iter().map(|p| (p.name.to_string(), json!([p.ci95.0, p.ci95.1]))).collect()),
-                "start": obj(c.params.iter().map(|p| (p.name.to_string(), json!(p.start))).collect()),
-                "units": obj(c.params.iter().map(|p| (p.name.to_string(), json!(p.unit))).collect()),
+                "params": field(&c.params, &|p| json!(p.value)),
+                "uncertainty": field(&c.params, &|p| json!(p.std)),
+                "ci95": field(&c.params, &|p| json!([p.ci95.0, p.ci95.1])),
+                "start": field(&c.params, &|p| json!(p.start)),
+                "units": field(&c.params, &|p| json!(p.unit)),
                 "error_reduction": c.reduction(),
                 "predicted_reduction": c.predicted_reduction,
                 "confirmed_reduction": c.confirmed_reduction,
@@ -681,6 +689,13 @@ pub fn to_json(d: &Diagnosed) -> Value {
         "excess_ratio": g.excess_ratio,
         "ranking": ranking,
         "selected": g.selected.iter().map(|(e, r)| json!({"effect": e, "incremental_reduction": r})).collect::<Vec<_>>(),
+        "stated": g.stated.iter().map(|st| json!({
+            "effect": st.effect,
+            "params": field(&st.params, &|p| json!(p.value)),
+            "uncertainty": field(&st.params, &|p| json!(p.std)),
+            "ci95": field(&st.params, &|p| json!([p.ci95.0, p.ci95.1])),
+            "units": field(&st.params, &|p| json!(p.unit)),
+        })).collect::<Vec<_>>(),
         "confounded": g.confounded,
         "unexplained": g.unexplained,
         "noise": obj(g.noise.iter().map(|(n, v)| (n.to_string(), json!(v))).collect()),

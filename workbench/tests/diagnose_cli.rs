@@ -320,6 +320,23 @@ fn a_set_of_effects_is_named_and_the_rest_located() {
     let selected: Vec<&str> =
         one["selected"].as_array().unwrap().iter().map(|s| s["effect"].as_str().unwrap()).collect();
     assert_eq!(selected, ["differential_friction", "controller_delay"], "{verdict}");
+    // What the verdict states of each member is the joint refit: the values r1.toml holds,
+    // with intervals that hold the truth. (A member's own refit in the ranking was fitted
+    // without the other: there the friction took part of the delay's error.)
+    let written: toml::Value = toml::from_str(&std::fs::read_to_string(p.join("r1.toml")).unwrap()).unwrap();
+    let stated = one["stated"].as_array().unwrap();
+    let names: Vec<&str> = stated.iter().map(|s| s["effect"].as_str().unwrap()).collect();
+    assert_eq!(names, selected, "{verdict}");
+    for (effect, param, truth) in
+        [("differential_friction", "coulomb_nm", 3.0), ("controller_delay", "delay_s", 0.03)]
+    {
+        let st = stated.iter().find(|s| s["effect"] == effect).unwrap();
+        let v = st["params"][param].as_f64().unwrap();
+        let file = written[effect][param].as_float().unwrap();
+        assert!((v - file).abs() <= 1e-6 * v.abs(), "{effect}.{param}: stated {v}, written {file}");
+        let (lo, hi) = (st["ci95"][param][0].as_f64().unwrap(), st["ci95"][param][1].as_f64().unwrap());
+        assert!(lo <= truth && truth <= hi, "{effect}.{param}: interval {lo}..{hi} misses {truth}");
+    }
     let two: Value =
         serde_json::from_str(&ok(&simrod(p, &["diagnose", "m.csv", "--json", "--effects", "r1.toml"])))
             .unwrap();

@@ -45,7 +45,8 @@ use super::selection::{greedy, refit_list, score_effects};
 use super::sensitivities::{sensitivities, Sensitivities};
 use super::uncertainty::{parameter_std, Spread};
 use super::verdict::{
-    base_structure, conclude, rank, structure_in, table_beats_library, Evidence, Verdict, PREFER_TABLE_MARGIN,
+    base_structure, conclude, rank, stated, structure_in, table_beats_library, Evidence, Verdict,
+    PREFER_TABLE_MARGIN,
 };
 
 /// Something that simulates the measured channels for given effects.
@@ -182,6 +183,18 @@ pub struct FittedParam {
     pub ci95: (f64, f64),
     /// Unit.
     pub unit: &'static str,
+}
+
+/// An effect the verdict names, as it states it: the values `--write-effects` writes
+/// (the set's joint refit when a set is named, else the effect's own refit) with the
+/// uncertainty stated beside them. A set member's own refit, in the ranking, is another
+/// value: it was fitted without the other members.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Stated {
+    /// Effect (or one channel's sensor cause) as the ranking names it.
+    pub effect: &'static str,
+    /// Its parameters as proposed.
+    pub params: Vec<FittedParam>,
 }
 
 /// Error of one channel before and after adding the effect.
@@ -357,6 +370,8 @@ pub struct Diagnosis {
     pub ranking: Vec<Candidate>,
     /// Effects picked by the greedy selection, with their incremental reductions.
     pub selected: Vec<(&'static str, f64)>,
+    /// The effects the verdict names, with the values it proposes ([`Stated`]).
+    pub stated: Vec<Stated>,
     /// Confounded groups among the leaders.
     pub confounded: Vec<ConfoundedGroup>,
     /// Where the unexplained residual is (for partial or unexplained verdicts).
@@ -443,6 +458,7 @@ fn stages(
     };
     let (v, empirical) = tables(twin, &ev, conclude(&ev));
     selected.retain(|(e, _)| v.named.contains(e));
+    let stated = stated(&ev, &v);
     let sentence = match empirical.as_ref() {
         Some(e) if e.refused.is_none() => format!("{}; {}", v.sentence, e.offer()),
         _ => v.sentence,
@@ -455,6 +471,7 @@ fn stages(
         lead: v.lead,
         ranking,
         selected,
+        stated,
         confounded,
         unexplained: v.unexplained,
         proposed: v.proposed,

@@ -6,7 +6,10 @@
 use model_core::{Channel, Effects};
 
 use super::constancy::Along;
-use super::engine::{Candidate, ConfoundedGroup, Location, MapAlias, MapShape, Options, SetFit, VerdictKind};
+use super::engine::{
+    Candidate, ConfoundedGroup, FittedParam, Location, MapAlias, MapShape, Options, SetFit, Stated,
+    VerdictKind,
+};
 use super::library::{with_values, ParamSpec};
 use super::locate::{follows, region};
 use super::preparation::{channel_energies, worse_somewhere, Prepared};
@@ -492,6 +495,40 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     })
 }
 
+/// The effects `v` names as it states them ([`Stated`]): the set's joint refit when it
+/// names the set, else each named effect's own refit, the values
+/// [`Verdict::proposed`] holds.
+pub(super) fn stated(ev: &Evidence, v: &Verdict) -> Vec<Stated> {
+    if let Some(set) = ev.set.filter(|s| s.effects.len() > 1 && s.effects == v.named) {
+        return set.effects.iter().map(|&effect| Stated { effect, params: set.stated(effect) }).collect();
+    }
+    v.named
+        .iter()
+        .filter_map(|&e| ev.cands.iter().find(|c| c.effect == e))
+        .map(|c| Stated { effect: c.effect, params: c.params.clone() })
+        .collect()
+}
+
+impl SetFit {
+    /// Member `effect`'s parameters as the joint refit gives them, with the σ it
+    /// reports and the 95 % interval clipped to the bounds (as a single refit's).
+    fn stated(&self, effect: &str) -> Vec<FittedParam> {
+        self.specs
+            .iter()
+            .zip(self.fit.values.iter().zip(self.reported.iter().zip(&self.starts)))
+            .filter(|(sp, _)| sp.cause == effect)
+            .map(|(sp, (&value, (&std, &start)))| FittedParam {
+                name: sp.param,
+                value,
+                start,
+                std,
+                ci95: ((value - 1.96 * std).max(sp.lower), (value + 1.96 * std).min(sp.upper)),
+                unit: sp.unit,
+            })
+            .collect()
+    }
+}
+
 /// Why sensor cause `c` is not claimed when one shape of map `a` does what it does.
 fn alias_refusal(c: &Candidate, a: &MapAlias) -> String {
     let what = match a.shape {
@@ -510,15 +547,8 @@ fn describe_set(set: &SetFit, cands: &[Candidate]) -> String {
     set.effects
         .iter()
         .map(|e| {
-            let params: Vec<String> = set
-                .specs
-                .iter()
-                .zip(set.fit.values.iter().zip(&set.reported))
-                .filter(|(sp, _)| sp.cause == *e)
-                .map(|(sp, (v, sd))| format!("{} = {:.4} ± {:.4} {}", sp.param, v, 1.96 * sd, sp.unit))
-                .collect();
             let kind = cands.iter().find(|c| c.effect == *e).map(cause_kind).unwrap_or_default();
-            format!("{e} ({}) [{kind}]", params.join(", "))
+            format!("{e} ({}) [{kind}]", values(&set.stated(e)))
         })
         .collect::<Vec<_>>()
         .join(" + ")
@@ -637,12 +667,16 @@ fn drifting(ev: &Evidence, lead: Option<&Candidate>) -> Option<String> {
 
 /// `effect (param = value ± 95 % half-width unit, …)`.
 fn describe(l: &Candidate) -> String {
-    let params: Vec<String> = l
-        .params
+    format!("{} ({}) [{}]", l.effect, values(&l.params), cause_kind(l))
+}
+
+/// `param = value ± 95 % half-width unit, …`.
+fn values(params: &[FittedParam]) -> String {
+    let each: Vec<String> = params
         .iter()
         .map(|fp| format!("{} = {:.4} ± {:.4} {}", fp.name, fp.value, 1.96 * fp.std, fp.unit))
         .collect();
-    format!("{} ({}) [{}]", l.effect, params.join(", "), cause_kind(l))
+    each.join(", ")
 }
 
 /// "sensor: moves C_Kistler_L alone" or "physical: moves 5 channels (A, B, ...)".
