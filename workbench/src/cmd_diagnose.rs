@@ -644,7 +644,8 @@ fn kind_name(k: &VerdictKind) -> &'static str {
 /// "error_reduction", "predicted_reduction", "confirmed_reduction", "significant",
 /// "cause": "sensor"|"physical", "moves": [channel], "leaves_structure", "drift": null or
 /// {"param", "along": "time"|"speed"|"torque", "first", "last"}, "map_alias": null or
-/// {"file", "shape", "value", "share"}, "channels": [...]}], "selected", "stated": [{"effect",
+/// {"file", "shape", "value", "share"}, "refused": null or why a significant candidate is
+/// not proposed, "channels": [...]}], "selected", "stated": [{"effect",
 /// "params", "uncertainty", "ci95", "units"}] (what the verdict names, with the values it
 /// proposes: a set's joint refit, not its members' own in the ranking), "confounded",
 /// "unexplained", "noise": {channel: σ},
@@ -677,6 +678,7 @@ pub fn to_json(d: &Diagnosed) -> Value {
                 "leaves_structure": c.leaves_structure,
                 "drift": c.drift,
                 "map_alias": c.map_alias,
+                "refused": c.refused,
                 "channels": c.channels,
                 "regions": c.regions,
             })

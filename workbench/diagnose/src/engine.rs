@@ -41,7 +41,7 @@ use super::library::ParamSpec;
 use super::preparation::{prepare, Prepared};
 use super::refit::{confirm, refit, refit_alone, Fit};
 use super::scan::scan_valleys;
-use super::selection::{greedy, refit_list, score_effects};
+use super::selection::{greedy, next_leaders, refit_list, score_effects};
 use super::sensitivities::{sensitivities, Sensitivities};
 use super::uncertainty::{parameter_std, Spread};
 use super::verdict::{
@@ -258,6 +258,9 @@ pub struct Candidate {
     /// For a sensor gain or offset: the map whose one shape removes about as much of the
     /// error ([`super::alias`]), when one does.
     pub map_alias: Option<MapAlias>,
+    /// Why a significant candidate is not proposed (the verdict's own words; `None`: it
+    /// counts, or it is not significant).
+    pub refused: Option<String>,
 }
 
 /// A map whose one shape does what a sensor cause does: the run cannot tell them apart.
@@ -425,21 +428,57 @@ fn stages(
     let ready = choose_dynamics(twin, &p, &s, o, &cands, &mut selected);
     let mut leaders = refit_list(&cands, &selected, o);
     with_siblings(&s, &mut leaders);
-    let (fits, set) = rayon::join(
+    let (mut fits, set) = rayon::join(
         || confirm_leaders(twin, &p, &s, o, &leaders, ready, &mut cands),
         || joint_fit(twin, &p, &s, o, &selected),
     );
     let resolution = twin.resolution();
     let structure =
         |sim: &[Vec<f32>]| structure_in(&p, twin.channels(), &resolution, twin.dt_s() * p.stride as f64, sim);
-    for (ci, f) in &fits {
-        if let Some(c) = cands.get_mut(*ci) {
-            c.leaves_structure = Some(structure(&f.sim).is_some());
+    let mark = |fits: &[(usize, Fit)], cands: &mut [Candidate]| {
+        for (ci, f) in fits {
+            if let Some(c) = cands.get_mut(*ci) {
+                c.leaves_structure = Some(structure(&f.sim).is_some());
+            }
         }
-    }
+    };
+    mark(&fits, &mut cands);
     map_aliases(twin, &p, &s, o, &selected, &mut cands);
-    let ranking = rank(&cands);
     let base_structure = base_structure(&p, twin.channels(), twin.dt_s() * p.stride as f64);
+    // Refused leaders make room for the next ones: when no refitted candidate counts, the
+    // next by predicted reduction get their refit (a true friction ranked fourth, behind
+    // sensor causes a wrong map mimics, was otherwise never tried).
+    let next = {
+        let ranking = rank(&cands);
+        let ev = Evidence {
+            p: &p,
+            s: &s,
+            o,
+            channels: twin.channels(),
+            resolution: resolution.clone(),
+            dt: twin.dt_s(),
+            cands: &cands,
+            fits: &fits,
+            set: set.as_ref(),
+            ranking: &ranking,
+            confounded: &[],
+            base_structure: None,
+        };
+        if ranking.iter().any(|c| ev.counts(c)) {
+            Vec::new()
+        } else {
+            next_leaders(&cands, &fits, o)
+        }
+    };
+    if !next.is_empty() {
+        let mut next = next;
+        with_siblings(&s, &mut next);
+        let more = confirm_leaders(twin, &p, &s, o, &next, Vec::new(), &mut cands);
+        mark(&more, &mut cands);
+        fits.extend(more);
+        map_aliases(twin, &p, &s, o, &selected, &mut cands);
+    }
+    let ranking = rank(&cands);
     let group = Leaders { cands: &cands, lin: &lin, fits: &fits, ranking: &ranking };
     let confounded = confounded_groups(&group, &s, o, &p.weights.means(p.idx.len()), probe);
     let ev = Evidence {
@@ -456,6 +495,8 @@ fn stages(
         confounded: &confounded,
         base_structure,
     };
+    let refused: Vec<Option<String>> =
+        ranking.iter().map(|c| c.significant.then(|| ev.refusal(c)).flatten()).collect();
     let (v, empirical) = tables(twin, &ev, conclude(&ev));
     selected.retain(|(e, _)| v.named.contains(e));
     let stated = stated(&ev, &v);
@@ -469,7 +510,7 @@ fn stages(
         excess_ratio: p.excess_ratio,
         noise: p.noise.clone(),
         lead: v.lead,
-        ranking,
+        ranking: ranking.into_iter().zip(refused).map(|(c, refused)| Candidate { refused, ..c }).collect(),
         selected,
         stated,
         confounded,

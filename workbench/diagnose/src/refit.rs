@@ -428,6 +428,7 @@ mod tests {
             leaves_structure: None,
             drift: None,
             map_alias: None,
+            refused: None,
             energy_after: None,
         };
         for (sd, significant) in [(f64::INFINITY, false), (f64::NAN, false), (0.1, true), (3.0, false)] {

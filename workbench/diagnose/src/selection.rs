@@ -8,6 +8,7 @@ use model_core::Channel;
 use super::engine::{Candidate, ChannelChange, FittedParam, Options, MOVES_SHARE};
 use super::linalg::{quad, solve_spd, sub_matrix};
 use super::preparation::{channel_energies, region_errors, rmse, Prepared};
+use super::refit::Fit;
 use super::sensitivities::Sensitivities;
 
 /// Bounded linear fit of the parameters `ix`: coefficients (in steps) and the weighted
@@ -81,6 +82,7 @@ pub(super) fn score_effects(
                 leaves_structure: None,
                 drift: None,
                 map_alias: None,
+                refused: None,
                 energy_after: None,
             };
             (cand, th)
@@ -217,22 +219,27 @@ fn forward(p: &Prepared, s: &Sensitivities, o: &Options, excluded: &[usize]) -> 
 
 /// Whether a cause that moves one channel alone, taking its weighted error from
 /// `before` to `after` over `samples` fit samples, only absorbs part of what is wrong
-/// there: it leaves the channel above `o.noise_like_ratio` of the noise. A real fault
-/// of the measurement chain (`chain`), once fitted, leaves its channel noise-like; a
-/// gain or an offset that takes a share of a channel's error is the cheapest
-/// description of *any* error there (a wrong map, a missing physical effect) and would
-/// be claimed falsely. A physical effect the run shows on one channel only has a shape
-/// of its own (a ramp rate acts on ramps): it absorbs only when it also removes less
-/// than `o.explain_fraction` of the channel's excess.
-pub(super) fn absorbs(before: f64, after: f64, samples: usize, chain: bool, o: &Options) -> bool {
+/// there: it leaves the channel above `o.noise_like_ratio` of the noise. A sensor's gain
+/// or offset (`gauge`: [`is_gauge`]), once fitted, leaves its channel noise-like when it
+/// is the fault; one that takes a share of a channel's error is the cheapest description
+/// of *any* error there (a wrong map, a missing physical effect) and would be claimed
+/// falsely. A cause with a shape of its own — a physical effect the run shows on one
+/// channel only (a ramp rate acts on ramps), a sensor's delay or lag (it acts on the
+/// transients, which no static map reproduces) — absorbs only when it also removes
+/// less than `o.explain_fraction` of the channel's excess: beside a wrong map its
+/// channel stays above the noise however right it is.
+pub(super) fn absorbs(before: f64, after: f64, samples: usize, gauge: bool, o: &Options) -> bool {
     let m = samples.max(1) as f64;
     let excess = (before - m).max(1e-12);
-    after / m > o.noise_like_ratio && (chain || (before - after) / excess < o.explain_fraction)
+    after / m > o.noise_like_ratio && (gauge || (before - after) / excess < o.explain_fraction)
 }
 
-/// Whether the candidate cause `cause` belongs to the measurement chain.
-pub(super) fn is_chain(s: &Sensitivities, cause: &str) -> bool {
-    s.specs.iter().any(|sp| sp.cause == cause && sp.is_chain())
+/// Whether the candidate cause `cause` is a sensor's gain or offset (a static fault of
+/// the measurement chain, [`absorbs`]).
+pub(super) fn is_gauge(s: &Sensitivities, cause: &str) -> bool {
+    s.specs
+        .iter()
+        .any(|sp| sp.cause == cause && sp.is_chain() && matches!(sp.effect, "sensor_gain" | "sensor_offset"))
 }
 
 /// Members of a set of two or more that move one channel alone (a sensor cause, in the
@@ -258,7 +265,7 @@ fn absorbers(p: &Prepared, s: &Sensitivities, o: &Options, chosen: &[usize]) -> 
         .filter(|&g| {
             let Some(c) = one_channel(s, &s.groups[g].1) else { return false };
             let rest: Vec<usize> = chosen.iter().copied().filter(|&x| x != g).collect();
-            absorbs(left(c, &rest), left(c, chosen), p.idx.len(), is_chain(s, s.groups[g].0), o)
+            absorbs(left(c, &rest), left(c, chosen), p.idx.len(), is_gauge(s, s.groups[g].0), o)
         })
         .collect()
 }
@@ -296,6 +303,17 @@ fn backward(s: &Sensitivities, p: &Prepared, chosen: &mut Vec<usize>) {
             _ => break,
         }
     }
+}
+
+/// The next `o.refit` candidates by predicted reduction that have no refit in `done`
+/// and predict to remove something: the leaders' successors when none of them counts.
+pub(super) fn next_leaders(cands: &[Candidate], done: &[(usize, Fit)], o: &Options) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..cands.len())
+        .filter(|i| cands[*i].predicted_reduction > 0.0 && !done.iter().any(|(d, _)| d == i))
+        .collect();
+    order.sort_by(|&a, &b| cands[b].predicted_reduction.total_cmp(&cands[a].predicted_reduction));
+    order.truncate(o.refit);
+    order
 }
 
 /// The candidates to refit: the selected ones, then the best by predicted reduction up to

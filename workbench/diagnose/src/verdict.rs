@@ -14,7 +14,7 @@ use super::library::{with_values, ParamSpec};
 use super::locate::{follows, region};
 use super::preparation::{channel_energies, worse_somewhere, Prepared};
 use super::refit::Fit;
-use super::selection::{absorbs, is_chain};
+use super::selection::{absorbs, is_gauge};
 use super::sensitivities::Sensitivities;
 use simrod_compare::structure;
 
@@ -85,14 +85,14 @@ impl Evidence<'_> {
     }
 
     /// A candidate counts when it is significant and nothing refuses it ([`Self::refusal`]).
-    fn counts(&self, c: &Candidate) -> bool {
+    pub(super) fn counts(&self, c: &Candidate) -> bool {
         c.significant && self.refusal(c).is_none()
     }
 
     /// Why a significant candidate is not proposed, said for the user: one of
     /// [`Self::refusal_but_worse`]'s reasons, or it makes some channel worse on some run
     /// ([`Self::worse`]). `None`: it counts.
-    fn refusal(&self, c: &Candidate) -> Option<String> {
+    pub(super) fn refusal(&self, c: &Candidate) -> Option<String> {
         self.refusal_but_worse(c).or_else(|| self.after(c.effect).and_then(|f| self.worse(&f.sim)))
     }
 
@@ -204,7 +204,7 @@ impl Evidence<'_> {
         let before = channel_energies(self.p, &self.p.base_sim);
         let after = channel_energies(self.p, sim);
         match (before.get(ch), after.get(ch)) {
-            (Some(b), Some(a)) => absorbs(*b, *a, self.p.idx.len(), is_chain(self.s, c.effect), self.o),
+            (Some(b), Some(a)) => absorbs(*b, *a, self.p.idx.len(), is_gauge(self.s, c.effect), self.o),
             _ => false,
         }
     }
@@ -765,6 +765,7 @@ mod tests {
             leaves_structure: Some(false),
             drift: None,
             map_alias: None,
+            refused: None,
         };
         let names = |r: Vec<Candidate>| r.iter().map(|c| c.effect).collect::<Vec<_>>();
         let (lag, delay) =
@@ -859,6 +860,7 @@ mod tests {
             leaves_structure: Some(leaves_structure),
             drift: None,
             map_alias: None,
+            refused: None,
         }
     }
 
