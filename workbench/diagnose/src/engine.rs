@@ -448,22 +448,9 @@ fn stages(
     // Refused leaders make room for the next ones: when no refitted candidate counts, the
     // next by predicted reduction get their refit (a true friction ranked fourth, behind
     // sensor causes a wrong map mimics, was otherwise never tried).
-    let next = {
+    let mut next = {
         let ranking = rank(&cands);
-        let ev = Evidence {
-            p: &p,
-            s: &s,
-            o,
-            channels: twin.channels(),
-            resolution: resolution.clone(),
-            dt: twin.dt_s(),
-            cands: &cands,
-            fits: &fits,
-            set: set.as_ref(),
-            ranking: &ranking,
-            confounded: &[],
-            base_structure: None,
-        };
+        let ev = evidence(twin, (&p, &s, o), &cands, &fits, set.as_ref(), &ranking);
         if ranking.iter().any(|c| ev.counts(c)) {
             Vec::new()
         } else {
@@ -471,7 +458,6 @@ fn stages(
         }
     };
     if !next.is_empty() {
-        let mut next = next;
         with_siblings(&s, &mut next);
         let more = confirm_leaders(twin, &p, &s, o, &next, Vec::new(), &mut cands);
         mark(&more, &mut cands);
@@ -482,18 +468,9 @@ fn stages(
     let group = Leaders { cands: &cands, lin: &lin, fits: &fits, ranking: &ranking };
     let confounded = confounded_groups(&group, &s, o, &p.weights.means(p.idx.len()), probe);
     let ev = Evidence {
-        p: &p,
-        s: &s,
-        o,
-        channels: twin.channels(),
-        resolution,
-        dt: twin.dt_s(),
-        cands: &cands,
-        fits: &fits,
-        set: set.as_ref(),
-        ranking: &ranking,
         confounded: &confounded,
         base_structure,
+        ..evidence(twin, (&p, &s, o), &cands, &fits, set.as_ref(), &ranking)
     };
     let refused: Vec<Option<String>> =
         ranking.iter().map(|c| c.significant.then(|| ev.refusal(c)).flatten()).collect();
@@ -518,6 +495,33 @@ fn stages(
         proposed: v.proposed,
         empirical,
     })
+}
+
+/// The evidence the verdict weighs: the refits `fits` of `cands`, ranked, and the
+/// selected set, on the diagnosis' data, sensitivities and options (`base`), with nothing
+/// confounded and no structure flagged yet (what whether a candidate counts does not read).
+fn evidence<'a>(
+    twin: &'a dyn Twin,
+    (p, s, o): (&'a Prepared, &'a Sensitivities, &'a Options),
+    cands: &'a [Candidate],
+    fits: &'a [(usize, Fit)],
+    set: Option<&'a SetFit>,
+    ranking: &'a [Candidate],
+) -> Evidence<'a> {
+    Evidence {
+        p,
+        s,
+        o,
+        channels: twin.channels(),
+        resolution: twin.resolution(),
+        dt: twin.dt_s(),
+        cands,
+        fits,
+        set,
+        ranking,
+        confounded: &[],
+        base_structure: None,
+    }
 }
 
 /// Stage 8: when the library leaves error, an empirical correction of the maps, fitted

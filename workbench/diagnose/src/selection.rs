@@ -237,9 +237,7 @@ pub(super) fn absorbs(before: f64, after: f64, samples: usize, gauge: bool, o: &
 /// Whether the candidate cause `cause` is a sensor's gain or offset (a static fault of
 /// the measurement chain, [`absorbs`]).
 pub(super) fn is_gauge(s: &Sensitivities, cause: &str) -> bool {
-    s.specs
-        .iter()
-        .any(|sp| sp.cause == cause && sp.is_chain() && matches!(sp.effect, "sensor_gain" | "sensor_offset"))
+    s.specs.iter().any(|sp| sp.cause == cause && matches!(sp.effect, "sensor_gain" | "sensor_offset"))
 }
 
 /// Members of a set of two or more that move one channel alone (a sensor cause, in the

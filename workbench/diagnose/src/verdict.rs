@@ -499,7 +499,7 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
 /// names the set, else each named effect's own refit, the values
 /// [`Verdict::proposed`] holds.
 pub(super) fn stated(ev: &Evidence, v: &Verdict) -> Vec<Stated> {
-    if let Some(set) = ev.set.filter(|s| s.effects.len() > 1 && s.effects == v.named) {
+    if let Some(set) = ev.set.filter(|s| s.effects == v.named) {
         return set.effects.iter().map(|&effect| Stated { effect, params: set.stated(effect) }).collect();
     }
     v.named
