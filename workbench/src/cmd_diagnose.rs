@@ -21,7 +21,7 @@ use model_core::{Channel, Effects};
 use serde_json::{json, Map, Value};
 
 use crate::compare::regions;
-use crate::diagnose::engine::FittedParam;
+use crate::diagnose::engine::{FittedParam, Stated};
 use crate::diagnose::twin::{fitted_channels, BuiltinProbe, Campaign, RecordedTwin};
 use crate::diagnose::{self, Diagnosis, Options, VerdictKind};
 use crate::effects_file::{format_effects, summarize_effects, write_effects};
@@ -645,9 +645,11 @@ fn kind_name(k: &VerdictKind) -> &'static str {
 /// "cause": "sensor"|"physical", "moves": [channel], "leaves_structure", "drift": null or
 /// {"param", "along": "time"|"speed"|"torque", "first", "last"}, "map_alias": null or
 /// {"file", "shape", "value", "share"}, "refused": null or why a significant candidate is
-/// not proposed, "channels": [...]}], "selected", "stated": [{"effect",
-/// "params", "uncertainty", "ci95", "units"}] (what the verdict names, with the values it
-/// proposes: a set's joint refit, not its members' own in the ranking), "confounded",
+/// not proposed, "held": [as "stated"] (the effects already in the model refitted beside
+/// it, whose new values are written with it), "channels": [...]}], "selected", "stated":
+/// [{"effect", "params", "uncertainty", "ci95", "units"}] (what the verdict names, with
+/// the values it proposes: a set's joint refit, not its members' own in the ranking, then
+/// the effects already in the model refitted beside the lead), "confounded",
 /// "unexplained", "noise": {channel: σ},
 /// "proposed_effects": TOML text or null, "setup", "timing_s"}`. NaN becomes null.
 pub fn to_json(d: &Diagnosed) -> Value {
@@ -657,6 +659,15 @@ pub fn to_json(d: &Diagnosed) -> Value {
     // One parameter field of every parameter, by name.
     let field = |ps: &[FittedParam], f: &dyn Fn(&FittedParam) -> Value| {
         obj(ps.iter().map(|p| (p.name.to_string(), f(p))).collect())
+    };
+    let stated = |st: &Stated| {
+        json!({
+            "effect": st.effect,
+            "params": field(&st.params, &|p| json!(p.value)),
+            "uncertainty": field(&st.params, &|p| json!(p.std)),
+            "ci95": field(&st.params, &|p| json!([p.ci95.0, p.ci95.1])),
+            "units": field(&st.params, &|p| json!(p.unit)),
+        })
     };
     let ranking: Vec<Value> = g
         .ranking
@@ -679,6 +690,7 @@ pub fn to_json(d: &Diagnosed) -> Value {
                 "drift": c.drift,
                 "map_alias": c.map_alias,
                 "refused": c.refused,
+                "held": c.held.iter().map(stated).collect::<Vec<_>>(),
                 "channels": c.channels,
                 "regions": c.regions,
             })
@@ -691,13 +703,7 @@ pub fn to_json(d: &Diagnosed) -> Value {
         "excess_ratio": g.excess_ratio,
         "ranking": ranking,
         "selected": g.selected.iter().map(|(e, r)| json!({"effect": e, "incremental_reduction": r})).collect::<Vec<_>>(),
-        "stated": g.stated.iter().map(|st| json!({
-            "effect": st.effect,
-            "params": field(&st.params, &|p| json!(p.value)),
-            "uncertainty": field(&st.params, &|p| json!(p.std)),
-            "ci95": field(&st.params, &|p| json!([p.ci95.0, p.ci95.1])),
-            "units": field(&st.params, &|p| json!(p.unit)),
-        })).collect::<Vec<_>>(),
+        "stated": g.stated.iter().map(stated).collect::<Vec<_>>(),
         "confounded": g.confounded,
         "unexplained": g.unexplained,
         "noise": obj(g.noise.iter().map(|(n, v)| (n.to_string(), json!(v))).collect()),

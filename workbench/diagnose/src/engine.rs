@@ -39,7 +39,7 @@ use super::dynamics::{choose_dynamics, with_siblings};
 use super::empirical::{correct, Empirical, Inputs as EmpiricalInputs};
 use super::library::ParamSpec;
 use super::preparation::{prepare, Prepared};
-use super::refit::{confirm, refit, refit_alone, Fit};
+use super::refit::{confirm, refit, refit_alone, with_held, Fit, Held};
 use super::scan::scan_valleys;
 use super::selection::{greedy, next_leaders, refit_list, score_effects};
 use super::sensitivities::{sensitivities, Sensitivities};
@@ -185,6 +185,36 @@ pub struct FittedParam {
     pub unit: &'static str,
 }
 
+impl FittedParam {
+    /// Parameter `sp` refitted to `value` from `start`, with the σ reported and the 95 %
+    /// interval clipped to the bounds.
+    pub(super) fn refitted(sp: &ParamSpec, value: f64, std: f64, start: f64) -> Self {
+        FittedParam {
+            name: sp.param,
+            value,
+            start,
+            std,
+            ci95: ((value - 1.96 * std).max(sp.lower), (value + 1.96 * std).min(sp.upper)),
+            unit: sp.unit,
+        }
+    }
+}
+
+/// Parameters `specs` (with `values`, σ `std` and `starts` alike) as [`Stated`] entries,
+/// one per cause, in order of first appearance.
+pub(super) fn by_cause(specs: &[&ParamSpec], values: &[f64], std: &[f64], starts: &[f64]) -> Vec<Stated> {
+    let mut out: Vec<Stated> = Vec::new();
+    for (k, sp) in specs.iter().enumerate() {
+        let (Some(&v), Some(&sd), Some(&s0)) = (values.get(k), std.get(k), starts.get(k)) else { continue };
+        let fp = FittedParam::refitted(sp, v, sd, s0);
+        match out.iter_mut().find(|st| st.effect == sp.cause) {
+            Some(st) => st.params.push(fp),
+            None => out.push(Stated { effect: sp.cause, params: vec![fp] }),
+        }
+    }
+    out
+}
+
 /// An effect the verdict names, as it states it: the values `--write-effects` writes
 /// (the set's joint refit when a set is named, else the effect's own refit) with the
 /// uncertainty stated beside them. A set member's own refit, in the ranking, is another
@@ -261,6 +291,9 @@ pub struct Candidate {
     /// Why a significant candidate is not proposed (the verdict's own words; `None`: it
     /// counts, or it is not significant).
     pub refused: Option<String>,
+    /// The effects already in the model, refitted beside it (their values change with
+    /// it, and are written with it: [`super::refit::with_held`]).
+    pub held: Vec<Stated>,
 }
 
 /// A map whose one shape does what a sensor cause does: the run cannot tell them apart.
@@ -427,9 +460,10 @@ fn stages(
     let mut selected = greedy(&p, &s, o);
     let ready = choose_dynamics(twin, &p, &s, o, &cands, &mut selected);
     let mut leaders = refit_list(&cands, &selected, o);
+    let held = Held::refit(twin, &p, &s, o);
     with_siblings(&s, &mut leaders);
     let (mut fits, set) = rayon::join(
-        || confirm_leaders(twin, &p, &s, o, &leaders, ready, &mut cands),
+        || confirm_leaders(twin, (&p, &s, o, &held), &leaders, ready, &mut cands),
         || joint_fit(twin, &p, &s, o, &selected),
     );
     let resolution = twin.resolution();
@@ -459,7 +493,7 @@ fn stages(
     };
     if !next.is_empty() {
         with_siblings(&s, &mut next);
-        let more = confirm_leaders(twin, &p, &s, o, &next, Vec::new(), &mut cands);
+        let more = confirm_leaders(twin, (&p, &s, o, &held), &next, Vec::new(), &mut cands);
         mark(&more, &mut cands);
         fits.extend(more);
         map_aliases(twin, &p, &s, o, &selected, &mut cands);
@@ -665,18 +699,18 @@ impl SetFit {
 /// Refit the candidates `list` on the simulator, with their uncertainty, and write the
 /// results into `cands`; the refits by candidate index (a failed refit is left out).
 /// The refits `ready` (by candidate index) are used as they are, and confirmed too when
-/// not in `list`.
+/// not in `list`. Each is refitted beside the effects already in the model (`held`) when
+/// that credits it with more ([`with_held`]).
 fn confirm_leaders(
     twin: &dyn Twin,
-    p: &Prepared,
-    s: &Sensitivities,
-    o: &Options,
+    (p, s, o, held): (&Prepared, &Sensitivities, &Options, &Held),
     list: &[usize],
     mut ready: Vec<(usize, Fit)>,
     cands: &mut [Candidate],
 ) -> Vec<(usize, Fit)> {
     use rayon::prelude::*;
     let specs = |ci: usize| -> Vec<&ParamSpec> { s.groups[ci].1.iter().map(|&i| &s.specs[i]).collect() };
+
     // Each leader with its refit when one is ready, then the ready refits of the others.
     let mut jobs: Vec<(usize, Option<Fit>)> = Vec::with_capacity(list.len() + ready.len());
     for &ci in list {
@@ -686,24 +720,40 @@ fn confirm_leaders(
     jobs.extend(ready.into_iter().map(|(ci, f)| (ci, Some(f))));
     // The refits are independent: on the pool side by side (each one's own batches of
     // simulations share the pool), in list order.
-    let done: Vec<(usize, Fit, Spread)> = jobs
+    let done: Vec<(usize, Fit, Spread, Vec<Stated>)> = jobs
         .into_par_iter()
         .filter_map(|(ci, fit)| {
-            let sp = specs(ci);
             let fit = match fit {
                 Some(f) => f,
                 None => refit_alone(twin, p, o, s, cands, ci)?,
             };
+            let fit = with_held(twin, (p, o, s), ci, held, fit);
+            let sp: Vec<&ParamSpec> =
+                specs(ci).into_iter().chain(fit.held.iter().map(|&i| &s.specs[i])).collect();
             // The drift is measured from where the model stood, not from the linear guess.
-            let current: Vec<f64> = cands[ci].params.iter().map(|f| f.start).collect();
+            let current: Vec<f64> = cands[ci]
+                .params
+                .iter()
+                .map(|f| f.start)
+                .chain(fit.held.iter().map(|&i| s.starts[i]))
+                .collect();
             let spread = parameter_std(p, &fit, &sp, &current, twin.dt_s());
-            Some((ci, fit, spread))
+            let own = s.groups[ci].1.len();
+            let tail = |v: &[f64]| v.get(own..).unwrap_or_default().to_vec();
+            let beside = by_cause(
+                sp.get(own..).unwrap_or_default(),
+                &tail(&fit.values),
+                &tail(&spread.reported),
+                &tail(&current),
+            );
+            Some((ci, fit, spread, beside))
         })
         .collect();
     let mut fits = Vec::with_capacity(done.len());
-    for (ci, fit, spread) in done {
-        confirm(&mut cands[ci], &fit, &spread, &specs(ci), p);
+    for (ci, fit, spread, beside) in done {
+        confirm(&mut cands[ci], &fit, &spread, (&specs(ci), held.energy()), p);
         cands[ci].drift = spread.drift;
+        cands[ci].held = beside;
         fits.push((ci, fit));
     }
     fits
@@ -729,6 +779,7 @@ mod tests {
                 jac: Vec::new(),
                 energy: 0.0,
                 profile: Vec::new(),
+                held: Vec::new(),
             },
             std: vec![0.001, 0.05, f64::INFINITY],
             reported: vec![0.001, 0.05, f64::INFINITY],

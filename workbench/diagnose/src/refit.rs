@@ -27,8 +27,13 @@ pub(super) struct Fit {
     pub jac: Vec<Vec<Vec<f64>>>,
     /// Weighted squared error at `values`.
     pub energy: f64,
-    /// One-parameter fits: (value, energy) of a fine scan around the optimum.
+    /// One-parameter fits: (value, energy) of a fine scan around the optimum (of the
+    /// first parameter, with the others at their values then).
     pub profile: Vec<(f64, f64)>,
+    /// Parameters of effects already in the model refitted beside the candidate's own
+    /// (indices into [`Sensitivities::specs`]; their values follow the own ones in
+    /// `values`): empty for a refit of the candidate alone ([`with_held`]).
+    pub held: Vec<usize>,
 }
 
 /// The bounded parameters of one refit, and how to simulate them.
@@ -110,7 +115,8 @@ pub(super) fn refit(
             break;
         }
     }
-    let mut fit = Fit { values: st.theta, sim: st.sim, jac, energy: st.energy, profile: Vec::new() };
+    let mut fit =
+        Fit { values: st.theta, sim: st.sim, jac, energy: st.energy, profile: Vec::new(), held: Vec::new() };
     if let [s0] = specs {
         profile_scan(&pb, s0, &mut fit);
     }
@@ -129,6 +135,68 @@ pub(super) fn refit_alone(
     let specs: Vec<&ParamSpec> = s.groups[ci].1.iter().map(|&i| &s.specs[i]).collect();
     let start: Vec<f64> = cands.get(ci)?.params.iter().map(|f| f.value).collect();
     refit(twin, p, o, &specs, &start)
+}
+
+/// The library parameters the model already holds away from their neutral values (the
+/// effects earlier rounds added, or the user's), and their refit together from their
+/// current values: what their values alone can still remove.
+pub(super) struct Held {
+    /// Indices into [`Sensitivities::specs`].
+    pub ix: Vec<usize>,
+    /// Their joint refit (`None`: nothing held, or the refit failed).
+    pub fit: Option<Fit>,
+}
+
+impl Held {
+    pub(super) fn refit(twin: &dyn Twin, p: &Prepared, s: &Sensitivities, o: &Options) -> Held {
+        let ix: Vec<usize> = (0..s.specs.len())
+            .filter(|&i| (s.starts[i] - s.specs[i].neutral).abs() > 1e-6 * s.specs[i].delta)
+            .collect();
+        let specs: Vec<&ParamSpec> = ix.iter().map(|&i| &s.specs[i]).collect();
+        let start: Vec<f64> = ix.iter().map(|&i| s.starts[i]).collect();
+        let fit = if ix.is_empty() { None } else { refit(twin, p, o, &specs, &start) };
+        Held { ix, fit }
+    }
+
+    /// The energy their refit leaves, when there is one.
+    pub(super) fn energy(&self) -> Option<f64> {
+        self.fit.as_ref().map(|f| f.energy)
+    }
+}
+
+/// `fit` of candidate `ci` (refitted alone) or, when it credits the candidate with more,
+/// its refit jointly with the effects already in the model (`held`),
+/// from their current values: the refit of the whole set at each stage. A value an
+/// earlier round fitted without the candidate is biased by its absence (a connector
+/// resistance fitted before a differential friction was known takes part of the
+/// friction's power draw), and the true candidate then looks harmful against it.
+///
+/// The joint refit is credited only with what it removes beyond the held values refitted alone: what refitting them removes anyway is not the candidate's.
+/// The alone fit is credited with what it removes from the current model. A candidate
+/// that is itself held is refitted alone, as before. The profile of a one-parameter fit
+/// is kept, shifted to the joint minimum.
+pub(super) fn with_held(
+    twin: &dyn Twin,
+    (p, o, s): (&Prepared, &Options, &Sensitivities),
+    ci: usize,
+    held: &Held,
+    fit: Fit,
+) -> Fit {
+    let own = &s.groups[ci].1;
+    let (Some(h), held) = (held.fit.as_ref(), &held.ix) else { return fit };
+    if own.iter().any(|i| held.contains(i)) || fit.values.len() != own.len() {
+        return fit;
+    }
+    let specs: Vec<&ParamSpec> = own.iter().chain(held).map(|&i| &s.specs[i]).collect();
+    let start: Vec<f64> = fit.values.iter().copied().chain(held.iter().map(|&i| s.starts[i])).collect();
+    match refit(twin, p, o, &specs, &start) {
+        Some(j) if h.energy - j.energy > p.e0 - fit.energy => {
+            let shift = j.energy - fit.energy;
+            let profile = fit.profile.iter().map(|(v, e)| (*v, e + shift)).collect();
+            Fit { profile, held: held.to_vec(), ..j }
+        }
+        _ => fit,
+    }
 }
 
 /// One parameter: a coarse grid over its bounds (logarithmic over a wide positive
@@ -268,8 +336,20 @@ pub(super) fn moved(v: f64, start: f64, sd: f64, s: &ParamSpec) -> bool {
 /// σ), the reduction measured on the simulator, per-channel and per-region errors.
 /// Significant: some parameter moved from its start by more than 2 of `spread`'s σ for
 /// that test (never with an undetermined σ).
-pub(super) fn confirm(cand: &mut Candidate, fit: &Fit, spread: &Spread, specs: &[&ParamSpec], p: &Prepared) {
-    cand.confirmed_reduction = Some(((p.e0 - fit.energy) / p.excess).clamp(0.0, 1.0));
+/// A refit beside the held effects ([`with_held`]) is credited with what it removes
+/// beyond their own refit, `held_energy`.
+pub(super) fn confirm(
+    cand: &mut Candidate,
+    fit: &Fit,
+    spread: &Spread,
+    (specs, held_energy): (&[&ParamSpec], Option<f64>),
+    p: &Prepared,
+) {
+    let from = match held_energy {
+        Some(e) if !fit.held.is_empty() => e,
+        _ => p.e0,
+    };
+    cand.confirmed_reduction = Some(((from - fit.energy) / p.excess).clamp(0.0, 1.0));
     cand.energy_after = Some(fit.energy);
     cand.significant = false;
     let sds = spread.std.iter().zip(&spread.reported);
@@ -407,6 +487,7 @@ mod tests {
             jac: Vec::new(),
             energy: 0.0,
             profile: Vec::new(),
+            held: Vec::new(),
         };
         let fp = super::super::engine::FittedParam {
             name: "coulomb_nm",
@@ -429,17 +510,18 @@ mod tests {
             drift: None,
             map_alias: None,
             refused: None,
+            held: Vec::new(),
             energy_after: None,
         };
         for (sd, significant) in [(f64::INFINITY, false), (f64::NAN, false), (0.1, true), (3.0, false)] {
             let spread = Spread { std: vec![sd], reported: vec![sd], drift: None };
-            confirm(&mut cand, &fit, &spread, &[&sa], &p);
+            confirm(&mut cand, &fit, &spread, (&[&sa], None), &p);
             assert_eq!(cand.significant, significant, "σ = {sd}");
         }
         // Significance is judged on the test's σ; the reported one (widened for what the
         // fit leaves) is what the parameter shows.
         let spread = Spread { std: vec![0.1], reported: vec![3.0], drift: None };
-        confirm(&mut cand, &fit, &spread, &[&sa], &p);
+        confirm(&mut cand, &fit, &spread, (&[&sa], None), &p);
         assert!(cand.significant);
         assert_eq!(cand.params[0].std, 3.0);
     }

@@ -83,6 +83,7 @@ pub(super) fn score_effects(
                 drift: None,
                 map_alias: None,
                 refused: None,
+                held: Vec::new(),
                 energy_after: None,
             };
             (cand, th)

@@ -73,7 +73,9 @@ pub(super) fn parameter_std(
             }
         }
     }
-    if let ([sd], [s0]) = (std.as_mut_slice(), specs) {
+    // A one-parameter fit's profile (kept when effects already in the model were
+    // refitted beside it: [`super::refit::with_held`]).
+    if let (Some(sd), Some(s0), false) = (std.first_mut(), specs.first(), fit.profile.is_empty()) {
         widen_by_profile(&p.weights, fit, s0, sd);
     }
     // A parameter the model can only realise in steps (a delay in whole time steps) is
@@ -173,7 +175,7 @@ fn student_t975(dof: usize) -> f64 {
     }
 }
 
-/// One parameter: the profile interval — values whose energy the data cannot tell from
+/// The first parameter: the profile interval — values whose energy the data cannot tell from
 /// the minimum (3.84 for 95 %, scaled by the sandwich's inflation over the naive variance)
 /// — widens the interval where the objective is rugged. An undetermined σ stays so.
 fn widen_by_profile(weights: &Weights, fit: &Fit, s0: &ParamSpec, sd: &mut f64) {

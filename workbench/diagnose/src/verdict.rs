@@ -7,7 +7,7 @@ use model_core::{Channel, Effects};
 
 use super::constancy::Along;
 use super::engine::{
-    Candidate, ConfoundedGroup, FittedParam, Location, MapAlias, MapShape, Options, SetFit, Stated,
+    by_cause, Candidate, ConfoundedGroup, FittedParam, Location, MapAlias, MapShape, Options, SetFit, Stated,
     VerdictKind,
 };
 use super::library::{with_values, ParamSpec};
@@ -209,11 +209,13 @@ impl Evidence<'_> {
         }
     }
 
-    /// The base effects plus the lead's refitted values.
+    /// The base effects plus the lead's refitted values (with those of the effects
+    /// already in the model refitted beside it).
     pub(super) fn proposed(&self, lead: Option<&Candidate>) -> Effects {
         let found = lead.and_then(|l| self.fits.iter().find(|(ci, _)| self.cands[*ci].effect == l.effect));
         let Some((ci, f)) = found else { return self.o.base };
-        let sp: Vec<&ParamSpec> = self.s.groups[*ci].1.iter().map(|&i| &self.s.specs[i]).collect();
+        let own = self.s.groups[*ci].1.iter();
+        let sp: Vec<&ParamSpec> = own.chain(&f.held).map(|&i| &self.s.specs[i]).collect();
         with_values(&self.o.base, &sp, &f.values)
     }
 
@@ -500,32 +502,24 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
 /// [`Verdict::proposed`] holds.
 pub(super) fn stated(ev: &Evidence, v: &Verdict) -> Vec<Stated> {
     if let Some(set) = ev.set.filter(|s| s.effects == v.named) {
-        return set.effects.iter().map(|&effect| Stated { effect, params: set.stated(effect) }).collect();
+        return set.stated();
     }
     v.named
         .iter()
         .filter_map(|&e| ev.cands.iter().find(|c| c.effect == e))
-        .map(|c| Stated { effect: c.effect, params: c.params.clone() })
+        .flat_map(|c| {
+            std::iter::once(Stated { effect: c.effect, params: c.params.clone() }).chain(c.held.clone())
+        })
         .collect()
 }
 
 impl SetFit {
-    /// Member `effect`'s parameters as the joint refit gives them, with the σ it
-    /// reports and the 95 % interval clipped to the bounds (as a single refit's).
-    fn stated(&self, effect: &str) -> Vec<FittedParam> {
-        self.specs
-            .iter()
-            .zip(self.fit.values.iter().zip(self.reported.iter().zip(&self.starts)))
-            .filter(|(sp, _)| sp.cause == effect)
-            .map(|(sp, (&value, (&std, &start)))| FittedParam {
-                name: sp.param,
-                value,
-                start,
-                std,
-                ci95: ((value - 1.96 * std).max(sp.lower), (value + 1.96 * std).min(sp.upper)),
-                unit: sp.unit,
-            })
-            .collect()
+    /// The members' parameters as the joint refit gives them, then those of the effects
+    /// already in the model refitted with them, with the σ it reports and the 95 %
+    /// interval clipped to the bounds (as a single refit's).
+    fn stated(&self) -> Vec<Stated> {
+        let sp: Vec<&ParamSpec> = self.specs.iter().collect();
+        by_cause(&sp, &self.fit.values, &self.reported, &self.starts)
     }
 }
 
@@ -544,14 +538,17 @@ fn alias_refusal(c: &Candidate, a: &MapAlias) -> String {
 
 /// `A (p = v ± h unit, …) [kind] + B (…) [kind]`.
 fn describe_set(set: &SetFit, cands: &[Candidate]) -> String {
-    set.effects
+    let stated = set.stated();
+    let (members, held): (Vec<Stated>, Vec<Stated>) =
+        stated.into_iter().partition(|st| set.effects.contains(&st.effect));
+    let each: Vec<String> = members
         .iter()
-        .map(|e| {
-            let kind = cands.iter().find(|c| c.effect == *e).map(cause_kind).unwrap_or_default();
-            format!("{e} ({}) [{kind}]", values(&set.stated(e)))
+        .map(|st| {
+            let kind = cands.iter().find(|c| c.effect == st.effect).map(cause_kind).unwrap_or_default();
+            format!("{} ({}) [{kind}]", st.effect, values(&st.params))
         })
-        .collect::<Vec<_>>()
-        .join(" + ")
+        .collect();
+    format!("{}{}", each.join(" + "), beside(&held))
 }
 
 /// Structure found where the whole run's energy is noise-like.
@@ -667,7 +664,18 @@ fn drifting(ev: &Evidence, lead: Option<&Candidate>) -> Option<String> {
 
 /// `effect (param = value ± 95 % half-width unit, …)`.
 fn describe(l: &Candidate) -> String {
-    format!("{} ({}) [{}]", l.effect, values(&l.params), cause_kind(l))
+    format!("{} ({}) [{}]{}", l.effect, values(&l.params), cause_kind(l), beside(&l.held))
+}
+
+/// ", refitting beside it A (…), B (…)" for effects already in the model whose values
+/// change with a proposal; empty for none.
+fn beside(held: &[Stated]) -> String {
+    let each: Vec<String> = held.iter().map(|h| format!("{} ({})", h.effect, values(&h.params))).collect();
+    if each.is_empty() {
+        String::new()
+    } else {
+        format!(", refitting beside it {}", each.join(", "))
+    }
 }
 
 /// `param = value ± 95 % half-width unit, …`.
@@ -766,6 +774,7 @@ mod tests {
             drift: None,
             map_alias: None,
             refused: None,
+            held: Vec::new(),
         };
         let names = |r: Vec<Candidate>| r.iter().map(|c| c.effect).collect::<Vec<_>>();
         let (lag, delay) =
@@ -794,7 +803,14 @@ mod tests {
         let judge = |i_after: f64| {
             let after = sim(0.2, i_after);
             let energy = channel_energies(&p, &after).iter().sum();
-            let fit = Fit { values: vec![0.01], sim: after, jac: Vec::new(), energy, profile: Vec::new() };
+            let fit = Fit {
+                values: vec![0.01],
+                sim: after,
+                jac: Vec::new(),
+                energy,
+                profile: Vec::new(),
+                held: Vec::new(),
+            };
             let cand = supply_candidate(&p, energy, false);
             let (cands, fits) = (vec![cand], vec![(0, fit)]);
             let ev = Evidence {
@@ -861,6 +877,7 @@ mod tests {
             drift: None,
             map_alias: None,
             refused: None,
+            held: Vec::new(),
         }
     }
 
@@ -957,7 +974,14 @@ mod tests {
         assert!(flagged().is_some() && !left, "the window is flagged before the refit and not after");
         let energy: f64 = channel_energies(&p, &after).iter().sum();
         assert!(p.e0 - energy < o.min_reduction_of_noise * p.e_noise, "under the chance-fit bar");
-        let fit = Fit { values: vec![0.012], sim: after, jac: Vec::new(), energy, profile: Vec::new() };
+        let fit = Fit {
+            values: vec![0.012],
+            sim: after,
+            jac: Vec::new(),
+            energy,
+            profile: Vec::new(),
+            held: Vec::new(),
+        };
         let cand = supply_candidate(&p, energy, left);
         let (cands, fits) = (vec![cand], vec![(0, fit)]);
         let judge = |located: bool| {
@@ -997,7 +1021,14 @@ mod tests {
         let s = supply_resistance_only(&o);
         let after = sim(true);
         let energy: f64 = channel_energies(&p, &after).iter().sum();
-        let fit = Fit { values: vec![0.012], sim: after, jac: Vec::new(), energy, profile: Vec::new() };
+        let fit = Fit {
+            values: vec![0.012],
+            sim: after,
+            jac: Vec::new(),
+            energy,
+            profile: Vec::new(),
+            held: Vec::new(),
+        };
         let cand = Candidate { moves: vec!["V_DC"], ..supply_candidate(&p, energy, true) };
         let (cands, fits) = (vec![cand], vec![(0, fit)]);
         let ev = one_candidate(&p, &s, &o, &channels, dt, (&cands, &fits));
