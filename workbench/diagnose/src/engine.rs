@@ -727,7 +727,10 @@ fn confirm_leaders(
                 Some(f) => f,
                 None => refit_alone(twin, p, o, s, cands, ci)?,
             };
-            let fit = with_held(twin, (p, o, s), ci, held, fit);
+            // A one-channel cause is judged on its channel against the current model
+            // ([`Evidence::absorbs`]): refitted alone, so the held values' refit cannot
+            // clear that channel in its name.
+            let fit = if cands[ci].is_sensor() { fit } else { with_held(twin, (p, o, s), ci, held, fit) };
             let sp: Vec<&ParamSpec> =
                 specs(ci).into_iter().chain(fit.held.iter().map(|&i| &s.specs[i])).collect();
             // The drift is measured from where the model stood, not from the linear guess.

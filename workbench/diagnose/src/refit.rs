@@ -165,16 +165,17 @@ impl Held {
 }
 
 /// `fit` of candidate `ci` (refitted alone) or, when it credits the candidate with more,
-/// its refit jointly with the effects already in the model (`held`),
-/// from their current values: the refit of the whole set at each stage. A value an
+/// its refit jointly with the effects already in the model (`held`), from their current
+/// values: the refit of the whole set at each stage. A value an
 /// earlier round fitted without the candidate is biased by its absence (a connector
 /// resistance fitted before a differential friction was known takes part of the
 /// friction's power draw), and the true candidate then looks harmful against it.
 ///
-/// The joint refit is credited only with what it removes beyond the held values refitted alone: what refitting them removes anyway is not the candidate's.
-/// The alone fit is credited with what it removes from the current model. A candidate
-/// that is itself held is refitted alone, as before. The profile of a one-parameter fit
-/// is kept, shifted to the joint minimum.
+/// The joint refit is credited only with what it removes beyond the held values refitted
+/// alone: what refitting them removes anyway is not the candidate's. The alone fit is
+/// credited with what it removes from the current model. A candidate that is itself held
+/// is refitted alone, as before (and so is a one-channel cause: `confirm_leaders`). The
+/// profile of a one-parameter fit is kept, shifted to the joint minimum.
 pub(super) fn with_held(
     twin: &dyn Twin,
     (p, o, s): (&Prepared, &Options, &Sensitivities),
@@ -474,6 +475,35 @@ mod tests {
         let (lo, hi) = (fit.profile[0].0, fit.profile[fit.profile.len() - 1].0);
         assert!(lo < 1.5 && 1.5 < hi, "profile {lo}..{hi}");
         assert!(fit.profile.iter().all(|(_, e)| *e >= fit.energy));
+    }
+
+    /// The model holds the decay rate at 1.0 (truth 1.5) and lacks the amplitude (5):
+    /// the amplitude refitted alone, against the biased rate, leaves error; refitted with
+    /// the held rate, both come out right, and the refit says it moved the rate. The rate,
+    /// itself held, is refitted alone.
+    #[test]
+    fn a_held_value_is_refitted_with_the_candidate() {
+        let (twin, mut p) = setup(500);
+        p.e0 = energy(&p, &p.base_sim);
+        let (sa, sk) = (spec("coulomb_nm", 60.0), spec("viscous_nm_s_per_rad", 20.0));
+        let o =
+            Options { base: with_values(&Effects::NONE, &[&sk], &[1.0]), threads: 2, ..Options::default() };
+        let s = Sensitivities {
+            specs: vec![sa.clone(), sk.clone()],
+            starts: vec![0.0, 1.0],
+            groups: vec![("amplitude", vec![0]), ("rate", vec![1])],
+            ..Sensitivities::default()
+        };
+        let held = Held::refit(&twin, &p, &s, &o);
+        assert_eq!(held.ix, [1]);
+        let alone = refit(&twin, &p, &o, &[&sa], &[3.0]).expect("the twin runs");
+        assert!(alone.energy > 1.0, "alone, the amplitude cannot fit: {}", alone.energy);
+        let joint = with_held(&twin, (&p, &o, &s), 0, &held, alone);
+        assert_eq!(joint.held, [1]);
+        assert!((joint.values[0] / 5.0 - 1.0).abs() < 1e-5, "A = {}", joint.values[0]);
+        assert!((joint.values[1] / 1.5 - 1.0).abs() < 1e-5, "k = {}", joint.values[1]);
+        let rate = refit(&twin, &p, &o, &[&sk], &[1.0]).expect("the twin runs");
+        assert!(with_held(&twin, (&p, &o, &s), 1, &held, rate).held.is_empty());
     }
 
     /// An undetermined σ never makes a candidate significant; a finite small one does.

@@ -106,8 +106,14 @@ impl Evidence<'_> {
             return Some(format!("its {} {}", d.param, d.along.what()));
         }
         let Some(f) = self.after(c.effect) else { return Some("it was not refitted".into()) };
-        if self.p.e0 - f.energy < self.o.min_reduction_of_noise * self.p.e_noise && !self.clears_structure(c)
-        {
+        // What it is credited with: beyond the held values' own refit when refitted with
+        // them ([`super::refit::with_held`]).
+        let removed = if f.held.is_empty() {
+            self.p.e0 - f.energy
+        } else {
+            c.confirmed_reduction.unwrap_or(0.0) * self.p.excess
+        };
+        if removed < self.o.min_reduction_of_noise * self.p.e_noise && !self.clears_structure(c) {
             return Some("its refit removes less than a chance fit of the noise".into());
         }
         if let Some(a) = &c.map_alias {
