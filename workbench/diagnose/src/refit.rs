@@ -36,6 +36,15 @@ pub(super) struct Fit {
     pub held: Vec<usize>,
 }
 
+impl Fit {
+    /// A refit at `values` whose simulation is `sim` and error `energy`, with no
+    /// Jacobian nor profile (for tests of what is judged on a refit).
+    #[cfg(test)]
+    pub(super) fn fixed(values: Vec<f64>, sim: Vec<Vec<f32>>, energy: f64) -> Fit {
+        Fit { values, sim, jac: Vec::new(), energy, profile: Vec::new(), held: Vec::new() }
+    }
+}
+
 /// The bounded parameters of one refit, and how to simulate them.
 struct Problem<'a> {
     twin: &'a dyn Twin,

@@ -809,14 +809,7 @@ mod tests {
         let judge = |i_after: f64| {
             let after = sim(0.2, i_after);
             let energy = channel_energies(&p, &after).iter().sum();
-            let fit = Fit {
-                values: vec![0.01],
-                sim: after,
-                jac: Vec::new(),
-                energy,
-                profile: Vec::new(),
-                held: Vec::new(),
-            };
+            let fit = Fit::fixed(vec![0.01], after, energy);
             let cand = supply_candidate(&p, energy, false);
             let (cands, fits) = (vec![cand], vec![(0, fit)]);
             let ev = Evidence {
@@ -980,14 +973,7 @@ mod tests {
         assert!(flagged().is_some() && !left, "the window is flagged before the refit and not after");
         let energy: f64 = channel_energies(&p, &after).iter().sum();
         assert!(p.e0 - energy < o.min_reduction_of_noise * p.e_noise, "under the chance-fit bar");
-        let fit = Fit {
-            values: vec![0.012],
-            sim: after,
-            jac: Vec::new(),
-            energy,
-            profile: Vec::new(),
-            held: Vec::new(),
-        };
+        let fit = Fit::fixed(vec![0.012], after, energy);
         let cand = supply_candidate(&p, energy, left);
         let (cands, fits) = (vec![cand], vec![(0, fit)]);
         let judge = |located: bool| {
@@ -1027,14 +1013,7 @@ mod tests {
         let s = supply_resistance_only(&o);
         let after = sim(true);
         let energy: f64 = channel_energies(&p, &after).iter().sum();
-        let fit = Fit {
-            values: vec![0.012],
-            sim: after,
-            jac: Vec::new(),
-            energy,
-            profile: Vec::new(),
-            held: Vec::new(),
-        };
+        let fit = Fit::fixed(vec![0.012], after, energy);
         let cand = Candidate { moves: vec!["V_DC"], ..supply_candidate(&p, energy, true) };
         let (cands, fits) = (vec![cand], vec![(0, fit)]);
         let ev = one_candidate(&p, &s, &o, &channels, dt, (&cands, &fits));
