@@ -317,7 +317,7 @@ mod tests {
                 jac: vec![vec![x.clone()]],
                 energy: 0.0,
                 profile: Vec::new(),
-                held: Vec::new(),
+                held: None,
             };
             let spec = ParamSpec {
                 effect: "axle_friction_scale",
@@ -402,8 +402,7 @@ mod tests {
         sim.push(x.iter().map(|v| (c * v) as f32).collect());
         let mut jac: Vec<Vec<f64>> = op.iter().map(|_| quiet.clone()).collect();
         jac.push(x.clone());
-        let fit =
-            Fit { values: vec![c], sim, jac: vec![jac], energy: 0.0, profile: Vec::new(), held: Vec::new() };
+        let fit = Fit { values: vec![c], sim, jac: vec![jac], energy: 0.0, profile: Vec::new(), held: None };
         let spec = ParamSpec {
             effect: "differential_friction",
             param: "viscous_nm_s_per_rad",

@@ -710,7 +710,6 @@ fn confirm_leaders(
 ) -> Vec<(usize, Fit)> {
     use rayon::prelude::*;
     let specs = |ci: usize| -> Vec<&ParamSpec> { s.groups[ci].1.iter().map(|&i| &s.specs[i]).collect() };
-
     // Each leader with its refit when one is ready, then the ready refits of the others.
     let mut jobs: Vec<(usize, Option<Fit>)> = Vec::with_capacity(list.len() + ready.len());
     for &ci in list {
@@ -732,34 +731,39 @@ fn confirm_leaders(
             // clear that channel in its name.
             let fit = if cands[ci].is_sensor() { fit } else { with_held(twin, (p, o, s), ci, held, fit) };
             let sp: Vec<&ParamSpec> =
-                specs(ci).into_iter().chain(fit.held.iter().map(|&i| &s.specs[i])).collect();
+                specs(ci).into_iter().chain(fit.held_ix().iter().map(|&i| &s.specs[i])).collect();
             // The drift is measured from where the model stood, not from the linear guess.
             let current: Vec<f64> = cands[ci]
                 .params
                 .iter()
                 .map(|f| f.start)
-                .chain(fit.held.iter().map(|&i| s.starts[i]))
+                .chain(fit.held_ix().iter().map(|&i| s.starts[i]))
                 .collect();
             let spread = parameter_std(p, &fit, &sp, &current, twin.dt_s());
+            // The held parameters follow the own ones in every list.
             let own = s.groups[ci].1.len();
-            let tail = |v: &[f64]| v.get(own..).unwrap_or_default().to_vec();
             let beside = by_cause(
-                sp.get(own..).unwrap_or_default(),
-                &tail(&fit.values),
-                &tail(&spread.reported),
-                &tail(&current),
+                after(&sp, own),
+                after(&fit.values, own),
+                after(&spread.reported, own),
+                after(&current, own),
             );
             Some((ci, fit, spread, beside))
         })
         .collect();
     let mut fits = Vec::with_capacity(done.len());
     for (ci, fit, spread, beside) in done {
-        confirm(&mut cands[ci], &fit, &spread, (&specs(ci), held.energy()), p);
+        confirm(&mut cands[ci], &fit, &spread, &specs(ci), p);
         cands[ci].drift = spread.drift;
         cands[ci].held = beside;
         fits.push((ci, fit));
     }
     fits
+}
+
+/// `v` after its first `k` elements (empty when it has no more).
+fn after<T>(v: &[T], k: usize) -> &[T] {
+    v.get(k..).unwrap_or_default()
 }
 
 #[cfg(test)]
@@ -782,7 +786,7 @@ mod tests {
                 jac: Vec::new(),
                 energy: 0.0,
                 profile: Vec::new(),
-                held: Vec::new(),
+                held: None,
             },
             std: vec![0.001, 0.05, f64::INFINITY],
             reported: vec![0.001, 0.05, f64::INFINITY],

@@ -30,18 +30,38 @@ pub(super) struct Fit {
     /// One-parameter fits: (value, energy) of a fine scan around the optimum (of the
     /// first parameter, with the others at their values then).
     pub profile: Vec<(f64, f64)>,
-    /// Parameters of effects already in the model refitted beside the candidate's own
-    /// (indices into [`Sensitivities::specs`]; their values follow the own ones in
-    /// `values`): empty for a refit of the candidate alone ([`with_held`]).
-    pub held: Vec<usize>,
+    /// The effects already in the model refitted beside the candidate's own parameters
+    /// ([`with_held`]); `None` for a refit of the candidate alone.
+    pub held: Option<Beside>,
+}
+
+/// What a refit beside the held effects refitted, and what it is credited from.
+pub(super) struct Beside {
+    /// Indices into [`Sensitivities::specs`]; their values follow the own ones in
+    /// [`Fit::values`].
+    pub ix: Vec<usize>,
+    /// The energy the held values' own refit leaves ([`Held`]): what refitting them
+    /// removes anyway is not the candidate's.
+    pub from: f64,
 }
 
 impl Fit {
+    /// The held parameters refitted beside the own ones (none for a refit alone).
+    pub(super) fn held_ix(&self) -> &[usize] {
+        self.held.as_ref().map_or(&[], |b| &b.ix)
+    }
+
+    /// The error the refit removes as credited to its candidate: from the current
+    /// model's `e0`, or beside the held effects from their own refit.
+    pub(super) fn credit(&self, e0: f64) -> f64 {
+        self.held.as_ref().map_or(e0, |b| b.from) - self.energy
+    }
+
     /// A refit at `values` whose simulation is `sim` and error `energy`, with no
     /// Jacobian nor profile (for tests of what is judged on a refit).
     #[cfg(test)]
     pub(super) fn fixed(values: Vec<f64>, sim: Vec<Vec<f32>>, energy: f64) -> Fit {
-        Fit { values, sim, jac: Vec::new(), energy, profile: Vec::new(), held: Vec::new() }
+        Fit { values, sim, jac: Vec::new(), energy, profile: Vec::new(), held: None }
     }
 }
 
@@ -125,7 +145,7 @@ pub(super) fn refit(
         }
     }
     let mut fit =
-        Fit { values: st.theta, sim: st.sim, jac, energy: st.energy, profile: Vec::new(), held: Vec::new() };
+        Fit { values: st.theta, sim: st.sim, jac, energy: st.energy, profile: Vec::new(), held: None };
     if let [s0] = specs {
         profile_scan(&pb, s0, &mut fit);
     }
@@ -166,11 +186,6 @@ impl Held {
         let fit = if ix.is_empty() { None } else { refit(twin, p, o, &specs, &start) };
         Held { ix, fit }
     }
-
-    /// The energy their refit leaves, when there is one.
-    pub(super) fn energy(&self) -> Option<f64> {
-        self.fit.as_ref().map(|f| f.energy)
-    }
 }
 
 /// `fit` of candidate `ci` (refitted alone) or, when it credits the candidate with more,
@@ -203,7 +218,7 @@ pub(super) fn with_held(
         Some(j) if h.energy - j.energy > p.e0 - fit.energy => {
             let shift = j.energy - fit.energy;
             let profile = fit.profile.iter().map(|(v, e)| (*v, e + shift)).collect();
-            Fit { profile, held: held.to_vec(), ..j }
+            Fit { profile, held: Some(Beside { ix: held.to_vec(), from: h.energy }), ..j }
         }
         _ => fit,
     }
@@ -346,20 +361,10 @@ pub(super) fn moved(v: f64, start: f64, sd: f64, s: &ParamSpec) -> bool {
 /// σ), the reduction measured on the simulator, per-channel and per-region errors.
 /// Significant: some parameter moved from its start by more than 2 of `spread`'s σ for
 /// that test (never with an undetermined σ).
-/// A refit beside the held effects ([`with_held`]) is credited with what it removes
-/// beyond their own refit, `held_energy`.
-pub(super) fn confirm(
-    cand: &mut Candidate,
-    fit: &Fit,
-    spread: &Spread,
-    (specs, held_energy): (&[&ParamSpec], Option<f64>),
-    p: &Prepared,
-) {
-    let from = match held_energy {
-        Some(e) if !fit.held.is_empty() => e,
-        _ => p.e0,
-    };
-    cand.confirmed_reduction = Some(((from - fit.energy) / p.excess).clamp(0.0, 1.0));
+/// A refit beside the held effects is credited with what it removes beyond their own
+/// refit ([`Fit::credit`]).
+pub(super) fn confirm(cand: &mut Candidate, fit: &Fit, spread: &Spread, specs: &[&ParamSpec], p: &Prepared) {
+    cand.confirmed_reduction = Some((fit.credit(p.e0) / p.excess).clamp(0.0, 1.0));
     cand.energy_after = Some(fit.energy);
     cand.significant = false;
     let sds = spread.std.iter().zip(&spread.reported);
@@ -508,11 +513,11 @@ mod tests {
         let alone = refit(&twin, &p, &o, &[&sa], &[3.0]).expect("the twin runs");
         assert!(alone.energy > 1.0, "alone, the amplitude cannot fit: {}", alone.energy);
         let joint = with_held(&twin, (&p, &o, &s), 0, &held, alone);
-        assert_eq!(joint.held, [1]);
+        assert_eq!(joint.held_ix(), [1]);
         assert!((joint.values[0] / 5.0 - 1.0).abs() < 1e-5, "A = {}", joint.values[0]);
         assert!((joint.values[1] / 1.5 - 1.0).abs() < 1e-5, "k = {}", joint.values[1]);
         let rate = refit(&twin, &p, &o, &[&sk], &[1.0]).expect("the twin runs");
-        assert!(with_held(&twin, (&p, &o, &s), 1, &held, rate).held.is_empty());
+        assert!(with_held(&twin, (&p, &o, &s), 1, &held, rate).held.is_none());
     }
 
     /// An undetermined σ never makes a candidate significant; a finite small one does.
@@ -526,7 +531,7 @@ mod tests {
             jac: Vec::new(),
             energy: 0.0,
             profile: Vec::new(),
-            held: Vec::new(),
+            held: None,
         };
         let fp = super::super::engine::FittedParam {
             name: "coulomb_nm",
@@ -554,13 +559,13 @@ mod tests {
         };
         for (sd, significant) in [(f64::INFINITY, false), (f64::NAN, false), (0.1, true), (3.0, false)] {
             let spread = Spread { std: vec![sd], reported: vec![sd], drift: None };
-            confirm(&mut cand, &fit, &spread, (&[&sa], None), &p);
+            confirm(&mut cand, &fit, &spread, &[&sa], &p);
             assert_eq!(cand.significant, significant, "σ = {sd}");
         }
         // Significance is judged on the test's σ; the reported one (widened for what the
         // fit leaves) is what the parameter shows.
         let spread = Spread { std: vec![0.1], reported: vec![3.0], drift: None };
-        confirm(&mut cand, &fit, &spread, (&[&sa], None), &p);
+        confirm(&mut cand, &fit, &spread, &[&sa], &p);
         assert!(cand.significant);
         assert_eq!(cand.params[0].std, 3.0);
     }

@@ -73,9 +73,10 @@ pub(super) fn parameter_std(
             }
         }
     }
-    // A one-parameter fit's profile (kept when effects already in the model were
-    // refitted beside it: [`super::refit::with_held`]).
-    if let (Some(sd), Some(s0), false) = (std.first_mut(), specs.first(), fit.profile.is_empty()) {
+    // A one-parameter fit's profile, of its first parameter (kept when effects already
+    // in the model were refitted beside it: [`super::refit::with_held`]).
+    let first = if fit.profile.is_empty() { None } else { std.first_mut().zip(specs.first()) };
+    if let Some((sd, s0)) = first {
         widen_by_profile(&p.weights, fit, s0, sd);
     }
     // A parameter the model can only realise in steps (a delay in whole time steps) is

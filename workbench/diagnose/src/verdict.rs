@@ -106,14 +106,7 @@ impl Evidence<'_> {
             return Some(format!("its {} {}", d.param, d.along.what()));
         }
         let Some(f) = self.after(c.effect) else { return Some("it was not refitted".into()) };
-        // What it is credited with: beyond the held values' own refit when refitted with
-        // them ([`super::refit::with_held`]).
-        let removed = if f.held.is_empty() {
-            self.p.e0 - f.energy
-        } else {
-            c.confirmed_reduction.unwrap_or(0.0) * self.p.excess
-        };
-        if removed < self.o.min_reduction_of_noise * self.p.e_noise && !self.clears_structure(c) {
+        if f.credit(self.p.e0) < self.o.min_reduction_of_noise * self.p.e_noise && !self.clears_structure(c) {
             return Some("its refit removes less than a chance fit of the noise".into());
         }
         if let Some(a) = &c.map_alias {
@@ -221,7 +214,7 @@ impl Evidence<'_> {
         let found = lead.and_then(|l| self.fits.iter().find(|(ci, _)| self.cands[*ci].effect == l.effect));
         let Some((ci, f)) = found else { return self.o.base };
         let own = self.s.groups[*ci].1.iter();
-        let sp: Vec<&ParamSpec> = own.chain(&f.held).map(|&i| &self.s.specs[i]).collect();
+        let sp: Vec<&ParamSpec> = own.chain(f.held_ix()).map(|&i| &self.s.specs[i]).collect();
         with_values(&self.o.base, &sp, &f.values)
     }
 
@@ -520,9 +513,8 @@ pub(super) fn stated(ev: &Evidence, v: &Verdict) -> Vec<Stated> {
 }
 
 impl SetFit {
-    /// The members' parameters as the joint refit gives them, then those of the effects
-    /// already in the model refitted with them, with the σ it reports and the 95 %
-    /// interval clipped to the bounds (as a single refit's).
+    /// The members' parameters as the joint refit gives them, with the σ it reports and
+    /// the 95 % interval clipped to the bounds (as a single refit's).
     fn stated(&self) -> Vec<Stated> {
         let sp: Vec<&ParamSpec> = self.specs.iter().collect();
         by_cause(&sp, &self.fit.values, &self.reported, &self.starts)
@@ -544,17 +536,14 @@ fn alias_refusal(c: &Candidate, a: &MapAlias) -> String {
 
 /// `A (p = v ± h unit, …) [kind] + B (…) [kind]`.
 fn describe_set(set: &SetFit, cands: &[Candidate]) -> String {
-    let stated = set.stated();
-    let (members, held): (Vec<Stated>, Vec<Stated>) =
-        stated.into_iter().partition(|st| set.effects.contains(&st.effect));
-    let each: Vec<String> = members
+    set.stated()
         .iter()
         .map(|st| {
             let kind = cands.iter().find(|c| c.effect == st.effect).map(cause_kind).unwrap_or_default();
             format!("{} ({}) [{kind}]", st.effect, values(&st.params))
         })
-        .collect();
-    format!("{}{}", each.join(" + "), beside(&held))
+        .collect::<Vec<_>>()
+        .join(" + ")
 }
 
 /// Structure found where the whole run's energy is noise-like.
