@@ -39,7 +39,7 @@
 //! - **found**: a hidden library effect that moves a channel of the scenario's run (the
 //!   truth file's `moves`, [`excited_ids`]) is in the final file; the 95 % interval
 //!   stated beside the value that file holds (the last round naming it) holds the truth
-//!   (coverage, [`covered`]).
+//!   (coverage, [`stated_interval`]).
 //!
 //! Seeds: the proof uses seeds from 1,000,000 on, never used while developing (tuning
 //! used 500,000 on); `--first` moves them. `--check` exits 1 when a target is missed
@@ -113,6 +113,8 @@ struct Outcome {
     seconds: f64,
     /// Why a case is not honest: moved channels above their floor, channels made worse.
     why: Vec<String>,
+    /// Hidden library effects not found, and stated intervals that miss the truth.
+    missed: Vec<String>,
 }
 
 /// The sweep's flags, parsed once (an unknown flag or a bad value is an error, not a
@@ -501,6 +503,7 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
     };
     let (false_claim, false_claim_strict) = (unjustified(&truth), unjustified(&hidden));
     let mut coverage = (0, 0);
+    let mut missed = Vec::new();
     let excited = excited_ids(&truth_toml);
     let library: Vec<(String, bool)> = c
         .scenario
@@ -512,10 +515,14 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         })
         .map(|(id, param, value)| {
             let found = claimed.contains(*id);
-            if found {
-                if let Some(inside) = covered(rounds, id, param, *value) {
-                    coverage.0 += usize::from(inside);
-                    coverage.1 += 1;
+            if !found {
+                missed.push(format!("{id} not found"));
+            } else if let Some((lo, hi)) = stated_interval(rounds, id, param) {
+                let inside = lo <= *value && *value <= hi;
+                coverage.0 += usize::from(inside);
+                coverage.1 += 1;
+                if !inside {
+                    missed.push(format!("{id}.{param} = {value:.4} outside [{lo:.4}, {hi:.4}]"));
                 }
             }
             (id.to_string(), found)
@@ -537,20 +544,19 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         last: last_j["verdict"].as_str().unwrap_or("").chars().take(160).collect(),
         seconds: t0.elapsed().as_secs_f64(),
         why: if honest { Vec::new() } else { why },
+        missed,
     })
 }
 
-/// Whether the 95 % interval stated for `id`.`param` holds `truth`: the interval the
+/// The 95 % interval stated for `id`.`param` (to test whether it holds the truth): the interval the
 /// verdict stated beside the value the final effect file holds, i.e. in the last round
 /// whose verdict names the effect (`stated`: a set's joint refit, not a member's own refit
 /// in the ranking; that round's proposal wrote the value, and a later round keeps it).
 /// Rounds kept before the JSON had `stated`: the first round naming it, its ranking entry.
-fn covered(rounds: &[Value], id: &str, param: &str, truth: f64) -> Option<bool> {
+fn stated_interval(rounds: &[Value], id: &str, param: &str) -> Option<(f64, f64)> {
     let label = |e: &str| e == id || e.strip_prefix(id).is_some_and(|r| r.starts_with('.'));
-    let inside = |ci: &Value| -> Option<bool> {
-        let (lo, hi) = (ci[param][0].as_f64()?, ci[param][1].as_f64()?);
-        Some(lo <= truth && truth <= hi)
-    };
+    let inside =
+        |ci: &Value| -> Option<(f64, f64)> { Some((ci[param][0].as_f64()?, ci[param][1].as_f64()?)) };
     if rounds.iter().any(|j| j.get("stated").is_some()) {
         return rounds.iter().rev().find_map(|j| {
             let st = j["stated"].as_array()?.iter().find(|x| x["effect"].as_str().is_some_and(label))?;
@@ -662,6 +668,9 @@ fn one_case(seed: u64, keep: Option<&Path>, replay: bool) -> (String, Option<Out
             );
             if !o.why.is_empty() {
                 text.push_str(&format!("{:>9}   not honest: {}\n", "", o.why.join(", ")));
+            }
+            if !o.missed.is_empty() {
+                text.push_str(&format!("{:>9}   library: {}\n", "", o.missed.join(", ")));
             }
             (text, Some(o))
         }
