@@ -640,14 +640,15 @@ fn kind_name(k: &VerdictKind) -> &'static str {
 }
 
 /// `{"source", "kind", "verdict", "excess_ratio", "ranking": [{"effect", "params":
-/// {name: value}, "uncertainty": {name: std}, "ci95": {name: [lo, hi]}, "units",
+/// {name: value}, "uncertainty": {name: std}, "uncertainty_data": {name: the part of
+/// std the identified data's stated uncertainty contributes}, "ci95": {name: [lo, hi]}, "units",
 /// "error_reduction", "predicted_reduction", "confirmed_reduction", "significant",
 /// "cause": "sensor"|"physical", "moves": [channel], "leaves_structure", "drift": null or
 /// {"param", "along": "time"|"speed"|"torque", "first", "last"}, "map_alias": null or
 /// {"file", "shape", "value", "share"}, "refused": null or why a significant candidate is
 /// not proposed, "held": [as "stated"] (the effects already in the model refitted beside
 /// it, whose new values are written with it), "channels": [...]}], "selected", "stated":
-/// [{"effect", "params", "uncertainty", "ci95", "units"}] (what the verdict names, with
+/// [{"effect", "params", "uncertainty", "uncertainty_data", "ci95", "units"}] (what the verdict names, with
 /// the values it proposes: a set's joint refit, not its members' own in the ranking, then
 /// the effects already in the model refitted beside the lead), "confounded",
 /// "unexplained", "noise": {channel: σ},
@@ -665,6 +666,7 @@ pub fn to_json(d: &Diagnosed) -> Value {
             "effect": st.effect,
             "params": field(&st.params, &|p| json!(p.value)),
             "uncertainty": field(&st.params, &|p| json!(p.std)),
+            "uncertainty_data": field(&st.params, &|p| json!(p.std_data)),
             "ci95": field(&st.params, &|p| json!([p.ci95.0, p.ci95.1])),
             "units": field(&st.params, &|p| json!(p.unit)),
         })
@@ -677,6 +679,7 @@ pub fn to_json(d: &Diagnosed) -> Value {
                 "effect": c.effect,
                 "params": field(&c.params, &|p| json!(p.value)),
                 "uncertainty": field(&c.params, &|p| json!(p.std)),
+                "uncertainty_data": field(&c.params, &|p| json!(p.std_data)),
                 "ci95": field(&c.params, &|p| json!([p.ci95.0, p.ci95.1])),
                 "start": field(&c.params, &|p| json!(p.start)),
                 "units": field(&c.params, &|p| json!(p.unit)),

@@ -53,8 +53,13 @@ fn hidden_axle_friction_is_named_and_its_effect_file_closes_the_gap() {
     let right = lead["params"]["right"].as_f64().unwrap();
     assert!((left - 1.3).abs() < 0.02, "left {left}");
     assert!((right - 1.0).abs() < 0.02, "right {right}");
+    // The run pins the scale down (its statistical σ); the friction map's own stated
+    // uncertainty (1.76 N m on curves of ~20 N m, table 5.7) is in the σ reported too.
     let sd = lead["uncertainty"]["left"].as_f64().unwrap();
-    assert!(sd > 0.0 && sd < 0.01, "std {sd}");
+    let data = lead["uncertainty_data"]["left"].as_f64().unwrap();
+    let stat = (sd * sd - data * data).sqrt();
+    assert!(stat > 0.0 && stat < 0.01, "statistical std {stat}");
+    assert!(data > 0.03 && data < 0.3, "the friction map's share {data}");
     assert!(lead["error_reduction"].as_f64().unwrap() > 0.9);
     assert_eq!(lead["significant"], true);
     // Every physical effect of the library is ranked; a channel's measurement chain only
@@ -253,7 +258,8 @@ fn a_mains_line_in_a_long_campaign_is_located() {
 /// A campaign is fitted jointly: differential friction hidden in TP14 reversed is
 /// confounded there with a current-sensor gain; the run the tool names to separate them
 /// (TP07 at 0.79 with motoring loads), added as a second file, resolves that pair and
-/// narrows the friction's interval (its statistical part: the twin's step bias stays).
+/// narrows the friction's interval (its statistical part: the twin's step bias and the
+/// maps' stated uncertainty stay).
 #[test]
 fn a_campaign_resolves_what_one_run_confounds() {
     let d = tempfile::tempdir().unwrap();
@@ -286,7 +292,8 @@ fn a_campaign_resolves_what_one_run_confounds() {
         let bias =
             workbench::diagnose::proof::declared_step_bias("differential_friction", "coulomb_nm", v).unwrap();
         let sd = lead["uncertainty"]["coulomb_nm"].as_f64().unwrap();
-        1.96 * (sd * sd - bias * bias / 3.0).sqrt()
+        let data = lead["uncertainty_data"]["coulomb_nm"].as_f64().unwrap();
+        1.96 * (sd * sd - bias * bias / 3.0 - data * data).sqrt()
     };
     let one = diag(&["rev.csv"]);
     assert_eq!(one["kind"], "missing", "{}", one["verdict"]);

@@ -179,6 +179,9 @@ pub struct FittedParam {
     /// bounded errors added); `f64::INFINITY` when the run does not determine the
     /// parameter; `NaN` when not refitted.
     pub std: f64,
+    /// Of `std`, the part the identified data's stated uncertainty contributes
+    /// ([`super::systematic`], added in quadrature); 0 when none, NaN when not refitted.
+    pub std_data: f64,
     /// 95 % interval (value ± 1.96 std, clipped to bounds; NaN when not refitted).
     pub ci95: (f64, f64),
     /// Unit.
@@ -186,27 +189,33 @@ pub struct FittedParam {
 }
 
 impl FittedParam {
-    /// Parameter `sp` refitted to `value` from `start`, with the σ reported and the 95 %
-    /// interval clipped to the bounds.
-    pub(super) fn refitted(sp: &ParamSpec, value: f64, std: f64, start: f64) -> Self {
+    /// Parameter `sp` refitted to `value` from `start`, with the σ reported (and its
+    /// data part) and the 95 % interval clipped to the bounds.
+    pub(super) fn refitted(sp: &ParamSpec, value: f64, (std, std_data): (f64, f64), start: f64) -> Self {
         FittedParam {
             name: sp.param,
             value,
             start,
             std,
+            std_data,
             ci95: ((value - 1.96 * std).max(sp.lower), (value + 1.96 * std).min(sp.upper)),
             unit: sp.unit,
         }
     }
 }
 
-/// Parameters `specs` (with `values`, σ `std` and `starts` alike) as [`Stated`] entries,
-/// one per cause, in order of first appearance.
-pub(super) fn by_cause(specs: &[&ParamSpec], values: &[f64], std: &[f64], starts: &[f64]) -> Vec<Stated> {
+/// Parameters `specs` (with `values`, σ `std`, its data part `data` and `starts` alike)
+/// as [`Stated`] entries, one per cause, in order of first appearance.
+pub(super) fn by_cause(
+    specs: &[&ParamSpec],
+    values: &[f64],
+    (std, data): (&[f64], &[f64]),
+    starts: &[f64],
+) -> Vec<Stated> {
     let mut out: Vec<Stated> = Vec::new();
     for (k, sp) in specs.iter().enumerate() {
         let (Some(&v), Some(&sd), Some(&s0)) = (values.get(k), std.get(k), starts.get(k)) else { continue };
-        let fp = FittedParam::refitted(sp, v, sd, s0);
+        let fp = FittedParam::refitted(sp, v, (sd, data.get(k).copied().unwrap_or(0.0)), s0);
         match out.iter_mut().find(|st| st.effect == sp.cause) {
             Some(st) => st.params.push(fp),
             None => out.push(Stated { effect: sp.cause, params: vec![fp] }),
@@ -453,7 +462,8 @@ fn stages(
     o: &Options,
     probe: Option<&dyn ProfileProbe>,
 ) -> Result<Diagnosis, String> {
-    let p = prepare(twin, meas, o)?;
+    let mut p = prepare(twin, meas, o)?;
+    p.data_items = super::systematic::responses(twin, &p, o);
     let s = sensitivities(twin, &p, o)?;
     let (mut cands, lin) = score_effects(&p, &s, twin.channels());
     scan_valleys(twin, &p, &s, o, &mut cands);
@@ -644,8 +654,9 @@ pub(super) struct SetFit {
     pub fit: Fit,
     /// σ of each parameter for the test whether it moved ([`Spread::std`]).
     pub std: Vec<f64>,
-    /// σ of each parameter as reported ([`Spread::reported`]).
+    /// σ of each parameter as reported ([`Spread::reported`]), and its data part.
     pub reported: Vec<f64>,
+    pub data: Vec<f64>,
     /// Each parameter's value before the fit (neutral or current).
     pub starts: Vec<f64>,
     /// A member's parameter that drifts over the run ([`Candidate::drift`]).
@@ -672,13 +683,14 @@ fn joint_fit(
     let sp: Vec<&ParamSpec> = ix.iter().map(|&i| &s.specs[i]).collect();
     let fit = refit(twin, p, o, &sp, &start)?;
     let starts: Vec<f64> = ix.iter().map(|&i| s.starts[i]).collect();
-    let Spread { std, reported, drift } = parameter_std(p, &fit, &sp, &starts, twin.dt_s());
+    let Spread { std, reported, data, drift } = parameter_std(p, &fit, &sp, &starts, twin.dt_s());
     Some(SetFit {
         effects: groups.iter().map(|&g| s.groups[g].0).collect(),
         specs: sp.into_iter().cloned().collect(),
         fit,
         std,
         reported,
+        data,
         starts,
         drift,
     })
@@ -745,7 +757,7 @@ fn confirm_leaders(
             let beside = by_cause(
                 after(&sp, own),
                 after(&fit.values, own),
-                after(&spread.reported, own),
+                (after(&spread.reported, own), after(&spread.data, own)),
                 after(&current, own),
             );
             Some((ci, fit, spread, beside))
@@ -790,6 +802,7 @@ mod tests {
             },
             std: vec![0.001, 0.05, f64::INFINITY],
             reported: vec![0.001, 0.05, f64::INFINITY],
+            data: vec![0.0; 3],
             starts: vec![0.010, 0.0, 0.0],
             drift: None,
         };

@@ -20,6 +20,7 @@ mod refit;
 mod scan;
 mod selection;
 mod sensitivities;
+mod systematic;
 mod uncertainty;
 mod verdict;
 

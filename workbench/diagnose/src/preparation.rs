@@ -55,6 +55,9 @@ pub(super) struct Prepared {
     pub excess: f64,
     /// `e0 / e_noise`.
     pub excess_ratio: f64,
+    /// Each uncertain item of the identified data's response to one σ of it,
+    /// `[item][channel][fit sample]` ([`super::systematic`]); empty when not known.
+    pub data_items: Vec<Vec<Vec<f64>>>,
 }
 
 /// Each channel's weight `1/σ²` on each fit sample, from the noise level of the run the
@@ -173,6 +176,7 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         e_noise: 0.0,
         excess: 0.0,
         excess_ratio: 0.0,
+        data_items: Vec::new(),
     };
     p.e0 = energy(&p, &p.base_sim);
     p.e_noise = (p.idx.len() * channels.len()) as f64;

@@ -367,10 +367,11 @@ pub(super) fn confirm(cand: &mut Candidate, fit: &Fit, spread: &Spread, specs: &
     cand.confirmed_reduction = Some((fit.credit(p.e0) / p.excess).clamp(0.0, 1.0));
     cand.energy_after = Some(fit.energy);
     cand.significant = false;
-    let sds = spread.std.iter().zip(&spread.reported);
-    for ((fp, &v), ((sd, shown), s)) in cand.params.iter_mut().zip(&fit.values).zip(sds.zip(specs)) {
+    let sds = spread.std.iter().zip(spread.reported.iter().zip(&spread.data));
+    for ((fp, &v), ((sd, (shown, data)), s)) in cand.params.iter_mut().zip(&fit.values).zip(sds.zip(specs)) {
         fp.value = v;
         fp.std = *shown;
+        fp.std_data = *data;
         fp.ci95 = ((v - 1.96 * shown).max(s.lower), (v + 1.96 * shown).min(s.upper));
         cand.significant |= moved(v, fp.start, *sd, s);
     }
@@ -538,6 +539,7 @@ mod tests {
             value: 0.0,
             start: 0.0,
             std: f64::NAN,
+            std_data: f64::NAN,
             ci95: (0.0, 0.0),
             unit: "-",
         };
@@ -558,13 +560,13 @@ mod tests {
             energy_after: None,
         };
         for (sd, significant) in [(f64::INFINITY, false), (f64::NAN, false), (0.1, true), (3.0, false)] {
-            let spread = Spread { std: vec![sd], reported: vec![sd], drift: None };
+            let spread = Spread { std: vec![sd], reported: vec![sd], data: vec![0.0], drift: None };
             confirm(&mut cand, &fit, &spread, &[&sa], &p);
             assert_eq!(cand.significant, significant, "σ = {sd}");
         }
         // Significance is judged on the test's σ; the reported one (widened for what the
         // fit leaves) is what the parameter shows.
-        let spread = Spread { std: vec![0.1], reported: vec![3.0], drift: None };
+        let spread = Spread { std: vec![0.1], reported: vec![3.0], data: vec![0.0], drift: None };
         confirm(&mut cand, &fit, &spread, &[&sa], &p);
         assert!(cand.significant);
         assert_eq!(cand.params[0].std, 3.0);

@@ -121,6 +121,7 @@ fn fitted_params(s: &Sensitivities, ix: &[usize], th: &[f64]) -> Vec<FittedParam
                 value: v,
                 start: s.starts[i],
                 std: f64::NAN,
+                std_data: f64::NAN,
                 ci95: (f64::NAN, f64::NAN),
                 unit: s.specs[i].unit,
             }

@@ -27,6 +27,7 @@ use super::linalg::{quad, solve_spd};
 use super::preparation::{Prepared, Weights};
 use super::refit::Fit;
 use super::sensitivities::normal_equations_by;
+use super::systematic::systematic_std;
 use simrod_numerics::stats::moving_mean;
 
 /// How well a refit pins its parameters down, and whether they are constants.
@@ -39,6 +40,9 @@ pub(super) struct Spread {
     /// part widened by the error the fit leaves ([`misfit_factor`]). A fit that leaves
     /// much unexplained still shows an effect is needed, but not its value.
     pub reported: Vec<f64>,
+    /// Of `reported`, the part the identified data's uncertainty contributes
+    /// ([`systematic_std`], added in quadrature).
+    pub data: Vec<f64>,
     /// A parameter whose value walks over the run ([`drift`], on the sandwich's σ: what
     /// noise alone moves the estimates by).
     pub drift: Option<Drift>,
@@ -95,7 +99,12 @@ pub(super) fn parameter_std(
     let with = |k: f64| -> Vec<f64> {
         std.iter().zip(&bounded).map(|(sd, v)| ((k * sd).powi(2) + v).sqrt()).collect()
     };
-    Spread { reported: with(birge), std: with(1.0), drift }
+    // What the identified data's own uncertainty moves the values by: reported, not
+    // tested (a systematic error of the value, not evidence against the effect).
+    let determined: Vec<bool> = std.iter().map(|sd| sd.is_finite()).collect();
+    let data = systematic_std(&p.weights, &fit.jac, &determined, &p.data_items);
+    let reported = with(birge).into_iter().zip(&data).map(|(r, d)| r.hypot(*d)).collect();
+    Spread { reported, std: with(1.0), data, drift }
 }
 
 /// The factor a fit's statistical σ is widened by for the error it leaves unexplained:

@@ -517,7 +517,7 @@ impl SetFit {
     /// the 95 % interval clipped to the bounds (as a single refit's).
     fn stated(&self) -> Vec<Stated> {
         let sp: Vec<&ParamSpec> = self.specs.iter().collect();
-        by_cause(&sp, &self.fit.values, &self.reported, &self.starts)
+        by_cause(&sp, &self.fit.values, (&self.reported, &self.data), &self.starts)
     }
 }
 
