@@ -654,8 +654,9 @@ pub(super) struct SetFit {
     pub fit: Fit,
     /// σ of each parameter for the test whether it moved ([`Spread::std`]).
     pub std: Vec<f64>,
-    /// σ of each parameter as reported ([`Spread::reported`]), and its data part.
+    /// σ of each parameter as reported ([`Spread::reported`]).
     pub reported: Vec<f64>,
+    /// Of `reported`, the identified data's part ([`Spread::data`]).
     pub data: Vec<f64>,
     /// Each parameter's value before the fit (neutral or current).
     pub starts: Vec<f64>,

@@ -19,17 +19,18 @@ use simrod_io::datadir::{Map1, Map2, ModelData, ParamLine};
 use simrod_io::map_uncertainty::{Uncertainty, REGION_WIDTH_PCT};
 
 use super::engine::{Options, Twin};
-use super::linalg::solve_spd;
+use super::linalg::{solve_spd, sub_matrix};
 use super::preparation::{run_each, Prepared, Weights};
+use super::sensitivities::normal_equations_by;
 
 /// The identified data moved by one σ of each uncertain item (maps by shape and region,
 /// parameter groups), with the item's name.
-fn moved_data(base: &ModelData, u: &Uncertainty) -> Vec<(String, ModelData)> {
+fn moved_data(base: &ModelData, u: &Uncertainty) -> Vec<(String, Arc<ModelData>)> {
     let mut out = Vec::new();
     let mut with = |name: String, f: &dyn Fn(&mut ModelData)| {
         let mut d = base.clone();
         f(&mut d);
-        out.push((name, d));
+        out.push((name, Arc::new(d)));
     };
     for (i, side) in ["L", "R"].iter().enumerate() {
         let (sd, taper) = (u.friction_nm[i].value, u.friction_taper_rpm.value);
@@ -81,13 +82,7 @@ fn shift_friction(m: &mut Map1, sd: f64, taper: f64) {
     for (y, x) in m.y.iter_mut().zip(&m.x) {
         let v = f64::from(*y);
         let t = 1.0 - (-(f64::from(*x) / taper).powi(2)).exp();
-        let sign = if v > 0.0 {
-            1.0
-        } else if v < 0.0 {
-            -1.0
-        } else {
-            0.0
-        };
+        let sign = if v == 0.0 { 0.0 } else { v.signum() };
         *y = (v + sign * sd * t) as f32;
     }
 }
@@ -119,7 +114,7 @@ fn scale_interior(m: &mut Map1, rel: f64) {
 pub(super) fn responses(twin: &dyn Twin, p: &Prepared, o: &Options) -> Vec<Vec<Vec<f64>>> {
     let Some(base) = twin.data() else { return Vec::new() };
     let jobs = moved_data(&base, &Uncertainty::thesis());
-    let runs = run_each(&jobs, o, |(_, d)| twin.run_data(&Arc::new(d.clone()), &o.base, p.stride));
+    let runs = run_each(&jobs, o, |(_, d)| twin.run_data(d, &o.base, p.stride));
     runs.into_iter()
         .filter_map(Result::ok)
         .map(|out| {
@@ -142,27 +137,22 @@ pub(super) fn systematic_std(
     items: &[Vec<Vec<f64>>],
 ) -> Vec<f64> {
     let ix: Vec<usize> = (0..jac.len()).filter(|&i| determined.get(i).copied().unwrap_or(false)).collect();
-    let np = ix.len();
-    let dot = |a: &[Vec<f64>], b: &[Vec<f64>]| -> f64 {
-        a.iter()
-            .zip(b)
-            .enumerate()
-            .map(|(c, (ac, bc))| {
-                ac.iter().zip(bc).enumerate().map(|(t, (x, y))| w.at(c, t) * x * y).sum::<f64>()
-            })
-            .sum()
-    };
-    let mut g = vec![0.0; np * np];
-    for (a, &i) in ix.iter().enumerate() {
-        for (b, &j) in ix.iter().enumerate().take(a + 1) {
-            let v = dot(&jac[i], &jac[j]);
-            g[a * np + b] = v;
-            g[b * np + a] = v;
-        }
-    }
+    let (g, _) = normal_equations_by(w, jac, |_, _| 0.0, 1, |_, _| 0);
+    let g = sub_matrix(&g[0], jac.len(), &ix);
     let mut var = vec![0.0; jac.len()];
     for item in items {
-        let b: Vec<f64> = ix.iter().map(|&i| dot(&jac[i], item)).collect();
+        // J'W j of the determined parameters.
+        let b: Vec<f64> = ix
+            .iter()
+            .map(|&i| {
+                let per_channel = jac[i].iter().zip(item).enumerate();
+                per_channel
+                    .map(|(c, (jc, mc))| {
+                        jc.iter().zip(mc).enumerate().map(|(t, (x, y))| w.at(c, t) * x * y).sum::<f64>()
+                    })
+                    .sum()
+            })
+            .collect();
         let Some(d) = solve_spd(&g, &b, 1e-12) else { return vec![f64::INFINITY; jac.len()] };
         for (&i, x) in ix.iter().zip(d) {
             var[i] += x * x;
@@ -203,7 +193,7 @@ mod tests {
         let moved = moved_data(&base, &Uncertainty::thesis());
         assert!(moved.len() > 20, "{} items", moved.len());
         for (name, d) in &moved {
-            assert!(d != &base, "{name} moved nothing");
+            assert!(**d != base, "{name} moved nothing");
         }
         let fl = &moved.iter().find(|(n, _)| n == "axle_friction_L").expect("friction L").1.friction[0];
         for ((y, y0), x) in fl.y.iter().zip(&base.friction[0].y).zip(&fl.x) {
