@@ -1007,6 +1007,11 @@ fn summarize(m: &MapNodes, base: &ModelData, now: &ModelData) -> MapCorrection {
 /// How a corrected map's comments begin: what [`before_corrections`] recognises.
 const MARK: &str = "# EMPIRICAL CORRECTION (simrod diagnose)";
 
+/// Whether an earlier diagnosis corrected some map of `d` ([`MARK`]).
+pub(super) fn has_corrections(d: &ModelData) -> bool {
+    before_corrections(d).is_some()
+}
+
 /// `d` with every map an earlier diagnosis corrected ([`MARK`]) back at the built-in
 /// data's values (the thesis maps every correction loop starts from); `None` when no map
 /// is marked or the built-in data cannot be read. A marked map whose grid differs from

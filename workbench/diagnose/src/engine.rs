@@ -464,6 +464,7 @@ fn stages(
 ) -> Result<Diagnosis, String> {
     let mut p = prepare(twin, meas, o)?;
     p.data_items = super::systematic::responses(twin, &p, o);
+    p.data_corrected = twin.data().is_some_and(|d| super::empirical::has_corrections(&d));
     let s = sensitivities(twin, &p, o)?;
     let (mut cands, lin) = score_effects(&p, &s, twin.channels());
     scan_valleys(twin, &p, &s, o, &mut cands);

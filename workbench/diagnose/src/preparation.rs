@@ -58,6 +58,8 @@ pub(super) struct Prepared {
     /// Each uncertain item of the identified data's response to one σ of it,
     /// `[item][channel][fit sample]` ([`super::systematic`]); empty when not known.
     pub data_items: Vec<Vec<Vec<f64>>>,
+    /// Whether the twin's data carries an empirical correction of an earlier round.
+    pub data_corrected: bool,
 }
 
 /// Each channel's weight `1/σ²` on each fit sample, from the noise level of the run the
@@ -177,6 +179,7 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         excess: 0.0,
         excess_ratio: 0.0,
         data_items: Vec::new(),
+        data_corrected: false,
     };
     p.e0 = energy(&p, &p.base_sim);
     p.e_noise = (p.idx.len() * channels.len()) as f64;

@@ -10,8 +10,10 @@
 //! figures; friction shifted; a parameter scaled), one simulation each. A refit with
 //! Jacobian `J` moves by `Δθ_m = G⁻¹ J'W j_m` (`G = J'WJ`) for the response `j_m` of
 //! item `m`; the items are independent, so the systematic σ is `√(Σ_m Δθ_m²)`, added to
-//! the reported σ in quadrature. Significance is not judged on it: whether an effect is
-//! needed is the residual's question, how well its value is known is this one's.
+//! the reported σ in quadrature. Significance is judged on it only for an effect new to
+//! a model whose data an earlier round corrected ([`super::uncertainty::parameter_std`]);
+//! otherwise whether an effect is needed is the residual's question, how well its value
+//! is known is this one's.
 
 use std::sync::Arc;
 
