@@ -108,8 +108,8 @@ pub(super) fn parameter_std(
     // Once a round had to correct the data, it is shown to be off, and a table corrects
     // only what it could locate: an effect new to the model must stand out of what the
     // data's stated uncertainty could give (on the tuning seeds 500,580–659, 4 of 5
-    // false claims came on top of a table). One already in the model is refitted on the
-    // statistical σ alone.
+    // false claims came on top of a table). Judged per parameter: one still at its
+    // neutral value is new; one already in the model is refitted on the statistical σ.
     let mut std = with(1.0);
     if p.data_corrected {
         for ((sd, d), (sp, s0)) in std.iter_mut().zip(&data).zip(specs.iter().zip(starts)) {
@@ -495,7 +495,7 @@ mod tests {
         let noise = gaussian(7, n);
         let meas: Vec<f64> = noise.iter().map(|e| 0.05 * e).collect();
         let base = vec![vec![0.0f32; n]];
-        let mut p = Prepared::single_run(vec![meas.clone()], vec![("I_DC", 0.05)], base);
+        let mut p = Prepared::single_run(vec![meas], vec![("I_DC", 0.05)], base);
         p.data_items = vec![vec![ramp.iter().map(|v| 0.5 * v).collect()]];
         let lib = super::super::library::library(&model_core::Params::default());
         let spec = lib.iter().find(|s| s.effect == "differential_friction").expect("a library effect");
