@@ -1007,9 +1007,13 @@ fn summarize(m: &MapNodes, base: &ModelData, now: &ModelData) -> MapCorrection {
 /// How a corrected map's comments begin: what [`before_corrections`] recognises.
 const MARK: &str = "# EMPIRICAL CORRECTION (simrod diagnose)";
 
-/// Whether an earlier diagnosis corrected some map of `d` ([`MARK`]).
+/// Whether an earlier diagnosis corrected some map or parameter of `d` ([`MARK`]): read
+/// from the labels alone (a labelled map on another grid counts too, though
+/// [`before_corrections`] cannot undo it). The labels are reached through
+/// [`values_mut`], the one place that maps a file to its comments, on a copy.
 pub(super) fn has_corrections(d: &ModelData) -> bool {
-    before_corrections(d).is_some()
+    let mut copy = d.clone();
+    MAPS.iter().any(|(file, _)| values_mut(&mut copy, file).is_some_and(|(_, notes)| notes.marked()))
 }
 
 /// `d` with every map an earlier diagnosis corrected ([`MARK`]) back at the built-in
@@ -1084,6 +1088,8 @@ mod tests {
         assert_eq!(node(&back, torque), node(&builtin, torque));
         assert_eq!(node(&back, speed), node(&user, speed), "the user's change stays");
         assert!(before_corrections(&back).is_none(), "the label goes with the correction");
+        let labelled = [&builtin, &user, &fixed, &back].map(has_corrections);
+        assert_eq!(labelled, [false, false, true, false], "only the labelled data counts as corrected");
     }
 
     /// The throttle chain's volts per percent is corrected like a one-node map: its
