@@ -4,7 +4,7 @@
 
 use model_core::Effects;
 
-use super::engine::{Candidate, ConfoundedGroup, Options, ProfileProbe};
+use super::engine::{Candidate, ConfoundedGroup, Options, ProbeRate, ProfileProbe};
 use super::library::{with_values, ParamSpec};
 use super::refit::Fit;
 use super::sensitivities::Sensitivities;
@@ -79,7 +79,8 @@ fn g_dot(s: &Sensitivities, a: &[f64], c: &[f64]) -> f64 {
 }
 
 /// Among the built-in profiles the probe offers, the one where the first two members'
-/// simulated effects are least alike (smallest |cosine| of their output changes).
+/// simulated effects are least alike (smallest |cosine| of their output changes), ranked
+/// at the probe's coarse step and named with its cosine at the bench's rate.
 fn separating_profile(
     probe: &dyn ProfileProbe,
     o: &Options,
@@ -90,15 +91,18 @@ fn separating_profile(
 ) -> Option<(String, f64)> {
     use rayon::prelude::*;
     let (a, b) = (member_effects(o, specs, l, members[0]), member_effects(o, specs, l, members[1]));
+    let cosine = |i: usize, rate: ProbeRate| {
+        let runs: Vec<Option<Vec<Vec<f32>>>> =
+            [&o.base, &a, &b].par_iter().map(|fx| probe.run(i, fx, rate)).collect();
+        match runs.as_slice() {
+            [Some(base), Some(sa), Some(sb)] => change_cosine(base, sa, sb, w),
+            _ => None,
+        }
+    };
     // Each profile's three runs are independent of every other's: on the pool, and the
     // best chosen in profile order (ties go to the first, as a serial search would).
-    let cosines: Vec<Option<f64>> = (0..probe.count())
-        .into_par_iter()
-        .map(|i| {
-            let (base, sa, sb) = (probe.run(i, &o.base)?, probe.run(i, &a)?, probe.run(i, &b)?);
-            change_cosine(&base, &sa, &sb, w)
-        })
-        .collect();
+    let cosines: Vec<Option<f64>> =
+        (0..probe.count()).into_par_iter().map(|i| cosine(i, ProbeRate::Screen)).collect();
     let mut best: Option<(usize, f64)> = None;
     for (i, cos) in cosines.into_iter().enumerate() {
         let Some(cos) = cos else { continue };
@@ -106,7 +110,7 @@ fn separating_profile(
             best = Some((i, cos));
         }
     }
-    best.map(|(i, cos)| (probe.name(i), cos))
+    best.map(|(i, screened)| (probe.name(i), cosine(i, ProbeRate::Bench).unwrap_or(screened)))
 }
 
 /// A member at its fitted values (its linear estimate if not refitted, a step if absent).

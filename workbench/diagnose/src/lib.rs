@@ -24,4 +24,4 @@ mod systematic;
 mod uncertainty;
 mod verdict;
 
-pub use engine::{diagnose, Diagnosis, Options, ProfileProbe, Twin, VerdictKind};
+pub use engine::{diagnose, Diagnosis, Options, ProbeRate, ProfileProbe, Twin, VerdictKind};

@@ -3,6 +3,7 @@
 //! is measured against. Also the shared helpers that run the twin and weigh its output.
 
 use model_core::{Channel, Effects};
+use rayon::prelude::*;
 
 use simrod_compare::structure::{self, weighting_sigma, Window};
 use simrod_io::progress::Progress;
@@ -146,8 +147,9 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
     // 0.25 s: slower than a tachometer's counting window, faster than most model error.
     // The noise is the one thing estimated on every sample.
     let h = ((0.125 / twin.dt_s()).round() as usize).max(5);
+    // Channel by channel, independent of each other: on the pool.
     let noise: Vec<(&'static str, f64)> = meas
-        .iter()
+        .par_iter()
         .zip(&base_sim)
         .zip(channels)
         .map(|((m, s), c)| (c.name(), channel_sigma(m, s, h)))
@@ -205,7 +207,7 @@ fn full_rate_windows(
     dt: f64,
     stride: usize,
 ) -> Vec<Vec<Window>> {
-    meas.iter()
+    meas.par_iter()
         .zip(sim)
         .enumerate()
         .map(|(c, (m, s))| {
@@ -270,6 +272,7 @@ fn run_weights(
         return Weights::uniform((0..meas.len()).map(pooled));
     }
     let per_run = (0..meas.len())
+        .into_par_iter()
         .map(|c| {
             let mut from = 0;
             segments

@@ -93,7 +93,9 @@ pub(super) fn sensitivities(twin: &dyn Twin, p: &Prepared, o: &Options) -> Resul
                 .collect(),
         );
     }
-    let (gc, bc) = channel_normal_equations(p, &sens);
+    // The two sums read the same Jacobian and are each a serial pass: side by side.
+    let ((gc, bc), (gf, bf)) =
+        rayon::join(|| channel_normal_equations(p, &sens), || fold_normal_equations(p, &sens));
     let np = specs.len();
     let mut g = vec![0.0; np * np];
     let mut b = vec![0.0; np];
@@ -102,7 +104,6 @@ pub(super) fn sensitivities(twin: &dyn Twin, p: &Prepared, o: &Options) -> Resul
         b.iter_mut().zip(bcc).for_each(|(a, x)| *a += x);
     }
     let groups = effect_groups(&specs);
-    let (gf, bf) = fold_normal_equations(p, &sens);
     Ok(Sensitivities { specs, starts, steps, sens, g, b, gc, bc, groups, gf, bf })
 }
 

@@ -7,7 +7,7 @@ use std::sync::{Arc, OnceLock};
 use model_core::{Builtin, Channel, Effects, Inputs, Profile, SetPoints};
 use simrod_io::datadir::ModelData;
 
-use super::engine::{ProfileProbe, Twin};
+use super::engine::{ProbeRate, ProfileProbe, Twin};
 use simrod_twin::{Keep, MeasuredTwin, ModelOptions, Physical};
 
 /// The twin on a measured run, restricted to the channels the diagnosis fits.
@@ -219,8 +219,13 @@ pub struct BuiltinProbe {
     pub candidates: Vec<(Builtin, f32, f32)>,
 }
 
-/// Step of the probe runs [µs]: the bench's rate.
-const PROBE_DT_US: u32 = 1000;
+/// Model step of the probe runs [µs] and the stride that keeps a sample every 10 ms.
+fn probe_step(rate: ProbeRate) -> (u32, usize) {
+    match rate {
+        ProbeRate::Screen => (5_000, 2),
+        ProbeRate::Bench => (1_000, 10),
+    }
+}
 
 impl BuiltinProbe {
     /// Forward and reverse, with and without loads, every built-in profile.
@@ -244,12 +249,13 @@ impl ProfileProbe for BuiltinProbe {
             format!("{} --throttle-scale {ts} --load-scale {ls}", b.name())
         })
     }
-    fn run(&self, i: usize, fx: &Effects) -> Option<Vec<Vec<f32>>> {
+    fn run(&self, i: usize, fx: &Effects, rate: ProbeRate) -> Option<Vec<Vec<f32>>> {
         let (b, ts, ls) = *self.candidates.get(i)?;
         let profile = Profile::new(self.model.profile_sets(b), ts, ls).ok()?;
-        let inputs = profile_inputs(&profile, PROBE_DT_US, self.model.supply_v);
-        // Every 10th step is plenty to compare shapes.
-        self.model.run_kept(PROBE_DT_US, *fx, &inputs, &self.channels, Keep { first: 0, stride: 10 }).ok()
+        let (dt_us, stride) = probe_step(rate);
+        let inputs = profile_inputs(&profile, dt_us, self.model.supply_v);
+        // A sample every 10 ms is plenty to compare shapes.
+        self.model.run_kept(dt_us, *fx, &inputs, &self.channels, Keep { first: 0, stride }).ok()
     }
 }
 
