@@ -93,6 +93,8 @@ struct Case {
 struct Outcome {
     class: String,
     campaign: bool,
+    /// The bench's maps are perturbed (a wrong map beside the hidden effects).
+    maps: bool,
     nothing_hidden: bool,
     honest: bool,
     miss: bool,
@@ -530,6 +532,7 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         .collect();
     Ok(Outcome {
         class: class_of(c),
+        maps: c.scenario.perturb_maps.is_some(),
         campaign: c.runs.len() > 1,
         nothing_hidden: c.scenario.picks.is_empty() && c.scenario.perturb_maps.is_none(),
         honest,
@@ -712,11 +715,12 @@ fn summary(o: &[Outcome]) -> bool {
     let total = o.len();
     let honest = count(&|x| x.honest);
     let false_claims = count(&|x| !x.false_claim.is_empty());
-    let lib = |camp: bool| {
+    let lib_where = |camp: bool, maps: &dyn Fn(bool) -> bool| {
         let all: Vec<&(String, bool)> =
-            o.iter().filter(|x| x.campaign == camp).flat_map(|x| &x.library).collect();
+            o.iter().filter(|x| x.campaign == camp && maps(x.maps)).flat_map(|x| &x.library).collect();
         (all.iter().filter(|(_, f)| *f).count(), all.len())
     };
+    let lib = |camp: bool| lib_where(camp, &|_| true);
     let (fs, ns) = lib(false);
     let (fc, nc) = lib(true);
     let quiet = count(&|x| x.nothing_hidden && x.library.is_empty() && x.false_claim.is_empty() && x.honest);
@@ -738,6 +742,11 @@ fn summary(o: &[Outcome]) -> bool {
     println!("misses: {}", count(&|x| x.miss));
     println!("library effects found, single runs: {}  (target >= 95 %)", pct(fs, ns));
     println!("library effects found, campaigns: {}  (target >= 98 %)", pct(fc, nc));
+    for (what, camp) in [("single runs", false), ("campaigns", true)] {
+        let (fi, ni) = lib_where(camp, &|m| !m);
+        let (fp, np) = lib_where(camp, &|m| m);
+        println!("  {what}: maps as identified {}, maps perturbed {}", pct(fi, ni), pct(fp, np));
+    }
     println!("nothing hidden, nothing claimed: {}  (target >= 98 %)", pct(quiet, hidden_none));
     println!("95 % intervals covering the truth: {}  (target 90-99 %)", pct(cin, ctot));
     let rate = |a: usize, b: usize| if b == 0 { 1.0 } else { a as f64 / b as f64 };
