@@ -39,7 +39,9 @@
 //! - **found**: a hidden library effect that moves a channel of the scenario's run (the
 //!   truth file's `moves`, [`excited_ids`]) is in the final file; the 95 % interval
 //!   stated beside the value that file holds (the last round naming it) holds the truth
-//!   (coverage, [`stated_interval`]).
+//!   (coverage, [`stated_interval`]). Found is also printed apart for the cases with the
+//!   maps as identified and those with the maps perturbed: beside a wrong map many
+//!   effects are ones the maps' stated uncertainty could give.
 //!
 //! Seeds: the proof uses seeds from 1,000,000 on, never used while developing (tuning
 //! used 500,000 on); `--first` moves them. `--check` exits 1 when a target is missed
