@@ -266,3 +266,24 @@ impl ProfileProbe for BuiltinProbe {
 pub fn fitted_channels() -> Vec<Channel> {
     model_core::MEASURED.to_vec()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The screening run and the bench-rate run of a profile give a sample at the same
+    /// instants (every 10 ms), so the cosine that ranks the profiles and the one the user
+    /// is told compare the same samples; and the coarse step stays close to the bench's
+    /// on the nominal twin (SuTMotorEnc within 2 % of its span at every sample of TP07:
+    /// 13 rpm of 2,156 when written).
+    #[test]
+    fn screening_and_bench_runs_of_a_profile_sample_the_same_instants() {
+        let probe = BuiltinProbe::standard(ModelOptions::default(), vec![Channel::SuTMotorEnc]);
+        let screen = probe.run(0, &Effects::NONE, ProbeRate::Screen).expect("screening run");
+        let bench = probe.run(0, &Effects::NONE, ProbeRate::Bench).expect("bench-rate run");
+        assert_eq!(screen[0].len(), bench[0].len());
+        let span = bench[0].iter().fold(0.0_f32, |m, v| m.max(v.abs()));
+        let worst = screen[0].iter().zip(&bench[0]).fold(0.0_f32, |m, (a, b)| m.max((a - b).abs()));
+        assert!(span > 100.0 && worst < 0.02 * span, "worst {worst} rpm of {span}");
+    }
+}
