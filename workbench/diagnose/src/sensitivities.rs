@@ -3,6 +3,7 @@
 //! equations of the linear fits, whole and per channel.
 
 use model_core::{Channel, Effects};
+use simrod_compare::structure;
 
 use super::engine::{Options, Twin};
 use super::library::{current_value, library, with_values, ParamSpec};
@@ -62,7 +63,17 @@ fn worth_fitting(s: &ParamSpec, p: &Prepared, channels: &[Channel], energies: &[
     }
     let n = p.idx.len().max(1) as f64;
     let fitted = Channel::from_key(s.param).and_then(|c| channels.iter().position(|k| *k == c));
-    fitted.and_then(|i| energies.get(i)).is_some_and(|e| e / n > SENSOR_EXCESS)
+    fitted.is_some_and(|i| energies.get(i).is_some_and(|e| e / n > SENSOR_EXCESS) || structured(p, i))
+}
+
+/// Whether channel `c`'s current residual has a time window the structure test flags
+/// ([`Prepared::base_windows`], at the threshold for every window of every channel): a
+/// sensor's lag or delay errs only at the transients, which a whole-run energy can leave
+/// below [`SENSOR_EXCESS`] while the diagnosis locates the error on that channel.
+fn structured(p: &Prepared, c: usize) -> bool {
+    let tested: usize = p.base_windows.iter().map(Vec::len).sum();
+    let th = structure::threshold(tested);
+    p.base_windows.get(c).is_some_and(|w| w.iter().any(|x| x.line_hz.is_none() && x.flagged_at(th)))
 }
 
 /// Simulate one step of every library parameter worth fitting and set up the normal
@@ -192,4 +203,53 @@ fn effect_groups(specs: &[ParamSpec]) -> Vec<(&'static str, Vec<usize>)> {
         }
     }
     v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use simrod_compare::structure::Window;
+
+    /// A time window the structure test flags (or a mains line, `line`).
+    fn flagged(line: bool) -> Window {
+        Window {
+            start: 2000,
+            len: 2000,
+            chi2: 200.0,
+            dof: 20,
+            p: 1e-30,
+            log_p: -69.0,
+            mean: 0.3,
+            energy_ratio: 3.0,
+            material: true,
+            line_hz: line.then_some(50.0),
+        }
+    }
+
+    /// A lag on C_Kistler_L errs at the transients: its channel's whole-run error is at the
+    /// noise, but the structure test flags a window there, so the channel's chain gets its
+    /// candidates; a channel at the noise with only a mains line flagged (I_DC) does not.
+    #[test]
+    fn a_channel_with_located_structure_gets_its_chain_candidates() {
+        let n = 100;
+        let quiet = vec![0.0; n];
+        let mut p = Prepared::single_run(
+            vec![quiet.clone(), quiet],
+            vec![("C_Kistler_L", 1.0), ("I_DC", 1.0)],
+            vec![vec![0.0; n], vec![0.0; n]],
+        );
+        p.base_windows = vec![vec![flagged(false)], vec![flagged(true)]];
+        let channels = [Channel::CKistlerL, Channel::IDc];
+        let energies = vec![n as f64; 2];
+        let lag = |c: Channel| {
+            library(&Default::default())
+                .into_iter()
+                .find(|s| s.effect == "sensor_lag" && Channel::from_key(s.param) == Some(c))
+                .expect("a lag spec for the channel")
+        };
+        assert!(worth_fitting(&lag(Channel::CKistlerL), &p, &channels, &energies));
+        assert!(!worth_fitting(&lag(Channel::IDc), &p, &channels, &energies));
+        p.base_windows = vec![Vec::new(), Vec::new()];
+        assert!(!worth_fitting(&lag(Channel::CKistlerL), &p, &channels, &energies));
+    }
 }
