@@ -45,7 +45,9 @@ impl Sensitivities {
 /// A channel's own measurement chain is a candidate only where the channel's error is
 /// this much above its noise (weighted energy per fit sample; noise alone gives 1 to
 /// about 1 %): a sensor cause moves its channel alone, so it cannot explain error
-/// elsewhere, and the 56 chain parameters of quiet channels would double the work.
+/// elsewhere, and the 56 chain parameters of quiet channels would double the work. A
+/// channel below it whose residual has located structure is a candidate too
+/// ([`structured`]).
 pub const SENSOR_EXCESS: f64 = 1.02;
 
 /// Whether `s` is worth a sensitivity run on this data: every physical parameter, and
