@@ -413,6 +413,18 @@ impl Prepared {
     }
 }
 
+/// The windows of `per_channel` (one list per channel) the structure test flags at the
+/// threshold for all of them together ([`structure::threshold`]: the multiple-testing
+/// control over every channel and window), with their channel.
+pub(super) fn flagged_windows(per_channel: &[Vec<Window>]) -> Vec<(usize, &Window)> {
+    let th = structure::threshold(per_channel.iter().map(Vec::len).sum());
+    per_channel
+        .iter()
+        .enumerate()
+        .flat_map(|(c, w)| w.iter().filter(move |x| x.flagged_at(th)).map(move |x| (c, x)))
+        .collect()
+}
+
 /// Weighted squared error per channel.
 pub(super) fn channel_energies(p: &Prepared, sim: &[Vec<f32>]) -> Vec<f64> {
     p.meas

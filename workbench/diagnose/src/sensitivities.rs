@@ -3,11 +3,10 @@
 //! equations of the linear fits, whole and per channel.
 
 use model_core::{Channel, Effects};
-use simrod_compare::structure;
 
 use super::engine::{Options, Twin};
 use super::library::{current_value, library, with_values, ParamSpec};
-use super::preparation::{channel_energies, run_all, Prepared, Weights};
+use super::preparation::{channel_energies, flagged_windows, run_all, Prepared, Weights};
 
 /// The library's parameters and the linearised model around the current one.
 #[derive(Default)]
@@ -47,16 +46,23 @@ impl Sensitivities {
 /// about 1 %): a sensor cause moves its channel alone, so it cannot explain error
 /// elsewhere, and the 56 chain parameters of quiet channels would double the work. A
 /// channel below it whose residual has located structure is a candidate too
-/// ([`structured`]).
+/// ([`located_structure`]).
 pub const SENSOR_EXCESS: f64 = 1.02;
 
 /// Whether `s` is worth a sensitivity run on this data: every physical parameter, and
-/// the chain parameters of channels with error above [`SENSOR_EXCESS`]. Not the throttle
+/// the chain parameters of channels with error above [`SENSOR_EXCESS`] or with located
+/// structure (`located`, [`located_structure`]). Not the throttle
 /// voltage's gain: the pedal's volts per percent feed the controller as well as the
 /// recording, so a gain on the recorded voltage alone describes a wrong calibration
 /// without being its cause (tuning cases with the plant's calibration 0.5 % off claimed
 /// it); the throttle's delay, lag and offset are the acquisition's.
-fn worth_fitting(s: &ParamSpec, p: &Prepared, channels: &[Channel], energies: &[f64]) -> bool {
+fn worth_fitting(
+    s: &ParamSpec,
+    p: &Prepared,
+    channels: &[Channel],
+    energies: &[f64],
+    located: &[bool],
+) -> bool {
     if s.cause == s.effect {
         return true;
     }
@@ -65,25 +71,32 @@ fn worth_fitting(s: &ParamSpec, p: &Prepared, channels: &[Channel], energies: &[
     }
     let n = p.idx.len().max(1) as f64;
     let fitted = Channel::from_key(s.param).and_then(|c| channels.iter().position(|k| *k == c));
-    fitted.is_some_and(|i| energies.get(i).is_some_and(|e| e / n > SENSOR_EXCESS) || structured(p, i))
+    fitted.is_some_and(|i| {
+        energies.get(i).is_some_and(|e| e / n > SENSOR_EXCESS) || located.get(i).copied().unwrap_or(false)
+    })
 }
 
-/// Whether channel `c`'s current residual has a time window the structure test flags
-/// ([`Prepared::base_windows`], at the threshold for every window of every channel): a
+/// Per channel, whether the current residual has a time window the structure test flags
+/// ([`Prepared::base_windows`], [`flagged_windows`]; a mains line is no sensor's): a
 /// sensor's lag or delay errs only at the transients, which a whole-run energy can leave
 /// below [`SENSOR_EXCESS`] while the diagnosis locates the error on that channel.
-fn structured(p: &Prepared, c: usize) -> bool {
-    let tested: usize = p.base_windows.iter().map(Vec::len).sum();
-    let th = structure::threshold(tested);
-    p.base_windows.get(c).is_some_and(|w| w.iter().any(|x| x.line_hz.is_none() && x.flagged_at(th)))
+fn located_structure(p: &Prepared) -> Vec<bool> {
+    let mut located = vec![false; p.base_windows.len()];
+    for (c, _) in flagged_windows(&p.base_windows).into_iter().filter(|(_, w)| w.line_hz.is_none()) {
+        located[c] = true;
+    }
+    located
 }
 
 /// Simulate one step of every library parameter worth fitting and set up the normal
 /// equations.
 pub(super) fn sensitivities(twin: &dyn Twin, p: &Prepared, o: &Options) -> Result<Sensitivities, String> {
     let energies = channel_energies(p, &p.base_sim);
-    let specs: Vec<ParamSpec> =
-        library(&o.params).into_iter().filter(|s| worth_fitting(s, p, twin.channels(), &energies)).collect();
+    let located = located_structure(p);
+    let specs: Vec<ParamSpec> = library(&o.params)
+        .into_iter()
+        .filter(|s| worth_fitting(s, p, twin.channels(), &energies, &located))
+        .collect();
     let starts: Vec<f64> = specs.iter().map(|s| current_value(&o.base, s)).collect();
     let steps: Vec<f64> = specs
         .iter()
@@ -249,9 +262,11 @@ mod tests {
                 .find(|s| s.effect == "sensor_lag" && Channel::from_key(s.param) == Some(c))
                 .expect("a lag spec for the channel")
         };
-        assert!(worth_fitting(&lag(Channel::CKistlerL), &p, &channels, &energies));
-        assert!(!worth_fitting(&lag(Channel::IDc), &p, &channels, &energies));
+        let located = located_structure(&p);
+        assert!(worth_fitting(&lag(Channel::CKistlerL), &p, &channels, &energies, &located));
+        assert!(!worth_fitting(&lag(Channel::IDc), &p, &channels, &energies, &located));
         p.base_windows = vec![Vec::new(), Vec::new()];
-        assert!(!worth_fitting(&lag(Channel::CKistlerL), &p, &channels, &energies));
+        let located = located_structure(&p);
+        assert!(!worth_fitting(&lag(Channel::CKistlerL), &p, &channels, &energies, &located));
     }
 }

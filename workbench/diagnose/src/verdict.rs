@@ -12,7 +12,7 @@ use super::engine::{
 };
 use super::library::{with_values, ParamSpec};
 use super::locate::{follows, region};
-use super::preparation::{channel_energies, worse_somewhere, Prepared};
+use super::preparation::{channel_energies, flagged_windows, worse_somewhere, Prepared};
 use super::refit::Fit;
 use super::selection::{absorbs, is_gauge};
 use super::sensitivities::Sensitivities;
@@ -131,8 +131,7 @@ impl Evidence<'_> {
         let Some(f) = self.after(c.effect).filter(|_| c.significant) else { return false };
         let mine: Vec<bool> = self.channels.iter().map(|ch| c.moves.contains(&ch.name())).collect();
         let on_mine = |per_channel: &[Vec<structure::Window>]| {
-            let th = structure::threshold(per_channel.iter().map(Vec::len).sum());
-            per_channel.iter().zip(&mine).any(|(w, m)| *m && w.iter().any(|x| x.flagged_at(th)))
+            flagged_windows(per_channel).iter().any(|(k, _)| mine[*k])
         };
         on_mine(&self.p.base_windows)
             && !on_mine(&windows_in(self.p, &self.resolution, self.dt_fit(), &f.sim))
@@ -329,12 +328,7 @@ fn strongest(
     per_channel: &[Vec<structure::Window>],
 ) -> Option<Structure> {
     let tested: usize = per_channel.iter().map(Vec::len).sum();
-    let th = structure::threshold(tested);
-    let flagged: Vec<(usize, &structure::Window)> = per_channel
-        .iter()
-        .enumerate()
-        .flat_map(|(c, w)| w.iter().filter(|x| x.flagged_at(th)).map(move |x| (c, x)))
-        .collect();
+    let flagged = flagged_windows(per_channel);
     let (c, w) = flagged.iter().min_by(|a, b| a.1.log_p.total_cmp(&b.1.log_p))?;
     let (run, window_s) = p.span(w.start, w.len, dt);
     let location =
