@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! cargo build --release -p workbench --bin simrod
-//! cargo run --release -p workbench --example blind_loop -- [--cases N] [--first SEED] [--jobs J] [--check] [--keep DIR]
+//! cargo run --release -p workbench --example blind_loop -- [--cases N] [--first SEED] [--jobs J] [--check] [--keep DIR] [--sensor-noise default|FILE]
 //! cargo run --release -p workbench --example blind_loop -- --replay DIR [--cases N] [--first SEED]
 //! ```
 //!
@@ -88,6 +88,8 @@ struct Case {
     clean: Vec<PathBuf>,
     /// Judge the rounds a kept directory holds instead of running them (`--replay`).
     replay: bool,
+    /// `--sensor-noise` for every diagnosis (absolute, or `default`).
+    sensor_noise: Option<PathBuf>,
 }
 
 /// What happened to one case.
@@ -144,6 +146,10 @@ struct Options {
     /// Judge the rounds kept in DIR again without running a diagnosis.
     #[arg(long, value_name = "DIR")]
     replay: Option<PathBuf>,
+    /// The user states the sensors' noise to diagnose (`--sensor-noise`): `default`, the
+    /// bench's (the noise its runs have), or a noise file.
+    #[arg(long, value_name = "default|FILE")]
+    sensor_noise: Option<PathBuf>,
 }
 
 fn simrod(dir: &Path, args: &[String]) -> Result<String, String> {
@@ -162,7 +168,7 @@ fn strings(v: &[&str]) -> Vec<String> {
 
 /// The runs of case `seed`: the scenario's own, then for a campaign 1–4 more of the
 /// same bench on other profiles and scales; each with its noise-free twin.
-fn make_case(dir: &Path, seed: u64, replay: bool) -> Result<Case, String> {
+fn make_case(dir: &Path, seed: u64, replay: bool, sensor_noise: Option<&Path>) -> Result<Case, String> {
     let scenario = Scenario::draw(seed);
     let mut r = Rng::new(seed, 7);
     let extra = if r.uniform() < 0.4 { 1 + r.index(4) } else { 0 };
@@ -212,7 +218,7 @@ fn make_case(dir: &Path, seed: u64, replay: bool) -> Result<Case, String> {
         exact.push(dir.join(ex));
         clean.push(dir.join(cl));
     }
-    Ok(Case { seed, scenario, runs, exact, clean, replay })
+    Ok(Case { seed, scenario, runs, exact, clean, replay, sensor_noise: sensor_noise.map(Path::to_path_buf) })
 }
 
 /// What the loop has added so far: the last effect file and the last model data
@@ -311,6 +317,9 @@ fn blind_loop(dir: &Path, c: &Case) -> Result<Rounds, String> {
         a.extend(runs.iter().cloned());
         a.extend(strings(&["--json", "--write-effects", &out, "--write-data", &data]));
         a.extend(added.flags());
+        if let Some(f) = &c.sensor_noise {
+            a.extend(["--sensor-noise".to_string(), f.display().to_string()]);
+        }
         let kept = dir.join(format!("r{k}.json"));
         let text = if c.replay {
             std::fs::read_to_string(&kept).map_err(|e| format!("--replay: {}: {e}", kept.display()))?
@@ -596,6 +605,10 @@ fn main() {
     let (n, first, jobs, check) = (o.cases, o.first, o.jobs as usize, o.check);
     let replay = o.replay;
     let keep = replay.clone().or(o.keep);
+    // The diagnoses run in each case's directory: a file named relative to here is made absolute.
+    let stated =
+        o.sensor_noise
+            .map(|f| if f == Path::new("default") { f } else { std::path::absolute(&f).unwrap_or(f) });
     println!(
         "{:>9} {:<22} {:>4} {:>6} {:>6} {:>7}  last verdict",
         "seed", "class", "runs", "honest", "rounds", "s"
@@ -606,13 +619,14 @@ fn main() {
     let mut outcomes = Vec::new();
     std::thread::scope(|scope| {
         for _ in 0..jobs {
-            let (tx, next, keep, replay) = (tx.clone(), &next, keep.as_deref(), replay.is_some());
+            let (tx, next, keep, replay, stated) =
+                (tx.clone(), &next, keep.as_deref(), replay.is_some(), stated.as_deref());
             scope.spawn(move || loop {
                 let seed = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 if seed >= first + n {
                     break;
                 }
-                let (text, o) = one_case(seed, keep, replay);
+                let (text, o) = one_case(seed, keep, replay, stated);
                 if tx.send((seed, text, o)).is_err() {
                     break;
                 }
@@ -634,7 +648,12 @@ fn main() {
 }
 
 /// Make, run and judge the case of `seed`: its lines of the table, and its outcome.
-fn one_case(seed: u64, keep: Option<&Path>, replay: bool) -> (String, Option<Outcome>) {
+fn one_case(
+    seed: u64,
+    keep: Option<&Path>,
+    replay: bool,
+    stated: Option<&Path>,
+) -> (String, Option<Outcome>) {
     let dir = match keep {
         Some(k) => {
             let d = k.join(seed.to_string());
@@ -648,7 +667,7 @@ fn one_case(seed: u64, keep: Option<&Path>, replay: bool) -> (String, Option<Out
             Err(e) => return (format!("{seed:>9} no temporary directory: {e}\n"), None),
         },
     };
-    let case = match make_case(dir.path(), seed, replay) {
+    let case = match make_case(dir.path(), seed, replay, stated) {
         Ok(c) => c,
         Err(e) => return (format!("{seed:>9} the bench refused the case: {e}\n"), None),
     };

@@ -186,7 +186,7 @@ pub fn run(args: &CompareArgs) -> Result<Compared, CmdError> {
         inputs.check("the history", &history::path_for(&args.meas)).map_err(CmdError::Usage)?;
     }
     let mut model = args.model.load()?;
-    model.sensors = args.sensors.model();
+    model.sensors = args.sensors.model()?;
     let effects = model.effects;
     let baseline_fx = args.baseline_effects.as_deref().map(load_effects).transpose()?;
     let load_opts = LoadOptions {

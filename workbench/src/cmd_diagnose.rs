@@ -202,6 +202,9 @@ struct RunOnGrid {
     twin: MeasuredTwin,
     al: Aligned,
     notes: Vec<String>,
+    /// Per fittable channel, the noise σ stated for each sample (taken while the
+    /// measured channels were still in `twin`).
+    stated: Vec<(Channel, Option<Vec<f64>>)>,
 }
 
 /// Load one run, check it and put it on the twin's grid (the file's values move into
@@ -229,11 +232,13 @@ fn load_run(
         CmdError::Usage(format!("{}: {m}", args.model.effects.as_deref().unwrap_or(Path::new("")).display()))
     })?;
     drop(loaded.measurement);
+    let channels = fitted_channels();
+    let stated = channels.iter().copied().zip(twin.stated_sigma(&channels)).collect();
     let al = twin.align_taking(model.effects).map_err(|e| usage(e.to_string()))?;
     let mut notes = loaded.notes;
     notes.push(format!("{src}: {}", al.grid.step_note));
     notes.extend(al.grid.data_notes.iter().map(|n| format!("{src}: {n}")));
-    Ok(RunOnGrid { src, twin, al, notes })
+    Ok(RunOnGrid { src, twin, al, notes, stated })
 }
 
 /// Every run of the command line, loaded side by side on `threads` workers (a
@@ -260,7 +265,7 @@ fn load_runs(
 pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
     let t0 = Instant::now();
     let mut model = args.model.load()?;
-    model.sensors = args.sensors.model();
+    model.sensors = args.sensors.model()?;
     let base = model.effects;
     let inputs =
         args.model.inputs().files("a measurement", &args.meas).file("--mapping", args.mapping.as_deref());
@@ -305,7 +310,10 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
         .into_iter()
         .map(|r| {
             notes.extend(r.notes);
-            RecordedTwin::new(r.twin, fitted.channels.clone())
+            let mut stated = r.stated;
+            let mine =
+                fitted.channels.iter().map(|c| stated.iter_mut().find(|(s, _)| s == c)?.1.take()).collect();
+            RecordedTwin::new(r.twin, fitted.channels.clone()).with_stated(mine)
         })
         .collect();
     let campaign = Campaign::new(twins).map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;

@@ -197,6 +197,11 @@ pub fn compare_prepared(
     }
     let t0 = Instant::now();
     let present: Vec<Channel> = twin.measured.iter().map(|(c, _)| *c).collect();
+    let stated = twin.stated_sigma(&present);
+    let stated_of = |name: &str| {
+        let i = present.iter().position(|c| c.name() == name)?;
+        stated[i].as_deref()
+    };
     let al = twin.into_aligned(opts.model.effects)?;
     if al.channels.is_empty() {
         return Err(CompareError::NoChannels);
@@ -239,8 +244,12 @@ pub fn compare_prepared(
             let top = budget::top_combined(&b, opts.top_regions);
             let worst = spans::worst_spans(time_s, &e, window, opts.spans);
             let resolution = Channel::from_name(&p.name).and_then(|c| opts.model.sensors.counting_step(c));
-            tested_windows
-                .push((!p.derived).then(|| structure::windows(&e, dt_s, resolution.unwrap_or(0.0))));
+            let fast = stated_of(&p.name).and_then(|sd| structure::fast_excess(&e, dt_s, sd));
+            tested_windows.push((!p.derived).then(|| {
+                let mut w = structure::windows(&e, dt_s, resolution.unwrap_or(0.0));
+                w.windows.extend(fast);
+                w
+            }));
             let mut whiteness = st.whiteness;
             if whiteness.verdict == residual::Verdict::Coloured && within_resolution(opts, &p.name, m.rmse) {
                 whiteness.verdict = residual::Verdict::Resolution;

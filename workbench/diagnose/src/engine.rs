@@ -66,6 +66,12 @@ pub trait Twin: Sync {
         vec![0.0; self.channels().len()]
     }
 
+    /// Per channel, the noise σ its sensor is stated to have on each sample (`None`: not
+    /// stated; then only the residual tells the noise).
+    fn stated_sigma(&self) -> Vec<Option<Vec<f64>>> {
+        vec![None; self.channels().len()]
+    }
+
     /// Samples of each recorded run, in order (one run: all of them). Held-out
     /// validation leaves one run out at a time when there are several.
     fn segments(&self) -> Vec<usize> {

@@ -48,6 +48,9 @@ pub(super) struct Prepared {
     /// `compare` flags. Its mains lines ([`Prepared::lines`]) are tested once, here: the
     /// twin makes no mains content, so no candidate's fit changes them.
     pub base_windows: Vec<Vec<Window>>,
+    /// Per channel, the noise σ stated for its sensor on each fit sample (`None`: not
+    /// stated), for the test of the residual's fast part ([`structure::fast_excess`]).
+    pub stated: Vec<Option<Vec<f64>>>,
     /// Weighted squared error of the current model.
     pub e0: f64,
     /// What noise alone would give (one per fit sample and channel).
@@ -77,6 +80,24 @@ pub(super) struct Weights {
 }
 
 impl Prepared {
+    /// The fit samples of each recorded run, in order.
+    pub fn run_ranges(&self) -> Vec<std::ops::Range<usize>> {
+        let n = self.idx.len();
+        let mut out = Vec::with_capacity(self.runs);
+        if self.runs < 2 {
+            out.push(0..n);
+            return out;
+        }
+        let mut start = 0;
+        for k in 1..=n {
+            if k == n || self.folds.get(k) != self.folds.get(start) {
+                out.push(start..k);
+                start = k;
+            }
+        }
+        out
+    }
+
     /// Channel `c`'s mains-line tests among [`Prepared::base_windows`] (a line needs
     /// every sample: thinned, 50 Hz aliases or is lost).
     pub fn lines(&self, c: usize) -> impl Iterator<Item = Window> + '_ {
@@ -156,7 +177,10 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         .collect();
     let segments = twin.segments();
     let weights = run_weights(meas, &base_sim, &noise, &segments, stride, h);
-    let base_windows = full_rate_windows(meas, &base_sim, &twin.resolution(), &segments, twin.dt_s(), stride);
+    let stated = twin.stated_sigma();
+    let base_windows =
+        full_rate_windows(meas, &base_sim, &twin.resolution(), &stated, &segments, twin.dt_s(), stride);
+    let stated = stated.into_iter().map(|s| s.map(|s| every(s, stride))).collect();
     let base_sim: Vec<Vec<f32>> = base_sim.into_iter().map(|c| every(c, stride)).collect();
     let meas: Vec<Vec<f64>> = meas.iter().map(|m| every(m.clone(), stride)).collect();
     let powers = derived_powers(channels, &meas, &noise);
@@ -176,6 +200,7 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         folds,
         runs: segments.len(),
         base_windows,
+        stated,
         e0: 0.0,
         e_noise: 0.0,
         excess: 0.0,
@@ -203,6 +228,7 @@ fn full_rate_windows(
     meas: &[Vec<f64>],
     sim: &[Vec<f32>],
     resolution: &[f64],
+    stated: &[Option<Vec<f64>>],
     segments: &[usize],
     dt: f64,
     stride: usize,
@@ -217,7 +243,12 @@ fn full_rate_windows(
             let mut out = Vec::new();
             for len in segments {
                 let to = (from + len).min(r.len());
-                out.extend(structure::windows(&r[from..to], dt, res).windows.into_iter().map(|w| Window {
+                let fast = stated
+                    .get(c)
+                    .and_then(Option::as_ref)
+                    .and_then(|sd| structure::fast_excess(&r[from..to], dt, sd.get(from..to)?));
+                let run = structure::windows(&r[from..to], dt, res).windows.into_iter().chain(fast);
+                out.extend(run.map(|w| Window {
                     start: (from + w.start).div_ceil(stride),
                     len: (w.len / stride).max(1),
                     ..w
@@ -546,6 +577,15 @@ pub(super) mod tests {
         let (run, (from, _)) = one.span(4, 1, 0.1);
         assert_eq!(run, None);
         assert!((from - 0.4).abs() < 1e-12, "{from}");
+    }
+
+    /// The fast test runs run by run: each run's fit samples, from its folds.
+    #[test]
+    fn run_ranges_follow_the_runs_of_a_campaign() {
+        let one = super::Prepared { idx: (0..6).collect(), runs: 1, ..Default::default() };
+        assert_eq!(one.run_ranges(), vec![0..6]);
+        let three = super::Prepared { runs: 3, folds: vec![0, 0, 1, 1, 1, 2], ..one };
+        assert_eq!(three.run_ranges(), vec![0..2, 2..5, 5..6]);
     }
 
     /// A campaign of a quiet run (σ 0.3) and a loud one (σ 1.2): each run's samples are

@@ -238,6 +238,7 @@ mod tests {
             energy_ratio: 3.0,
             material: true,
             line_hz: line.then_some(50.0),
+            fast: false,
         }
     }
 

@@ -19,12 +19,24 @@ pub struct RecordedTwin {
     /// The physical values of one run ([`Twin::hold_physics`]): effects that change only
     /// the measurement chain from it are replayed over them, not simulated.
     physics: OnceLock<Physical>,
+    /// Per channel, the noise σ stated for each sample ([`RecordedTwin::with_stated`]).
+    stated: Vec<Option<Vec<f64>>>,
 }
 
 impl RecordedTwin {
     /// The twin on `twin`'s run, returning `channels`.
     pub fn new(twin: MeasuredTwin, channels: Vec<Channel>) -> Self {
-        Self { twin, channels, physics: OnceLock::new() }
+        let stated = twin.stated_sigma(&channels);
+        Self { twin, channels, physics: OnceLock::new(), stated }
+    }
+
+    /// The noise σ stated per channel and sample, when the run's measured channels were
+    /// taken out of `twin` before [`RecordedTwin::new`] (`simrod diagnose` holds a long
+    /// run once): computed from them while they were there
+    /// ([`MeasuredTwin::stated_sigma`]).
+    pub fn with_stated(mut self, stated: Vec<Option<Vec<f64>>>) -> Self {
+        self.stated = stated;
+        self
     }
 
     /// The samples `keep` names with `fx`: replayed when only the chain differs from the
@@ -79,6 +91,10 @@ impl Twin for RecordedTwin {
 
     fn resolution(&self) -> Vec<f64> {
         self.channels.iter().map(|c| self.twin.model.sensors.counting_step(*c).unwrap_or(0.0)).collect()
+    }
+
+    fn stated_sigma(&self) -> Vec<Option<Vec<f64>>> {
+        self.stated.clone()
     }
 
     fn data(&self) -> Option<Arc<ModelData>> {
@@ -183,6 +199,20 @@ impl Twin for Campaign {
 
     fn resolution(&self) -> Vec<f64> {
         self.runs.first().map_or_else(Vec::new, Twin::resolution)
+    }
+
+    /// The runs' statements one after another; a channel stated on every run or not at all.
+    fn stated_sigma(&self) -> Vec<Option<Vec<f64>>> {
+        let mut all = vec![Some(Vec::new()); self.channels().len()];
+        for r in &self.runs {
+            for (a, s) in all.iter_mut().zip(r.stated_sigma()) {
+                *a = a.take().zip(s).map(|(mut a, s)| {
+                    a.extend(s);
+                    a
+                });
+            }
+        }
+        all
     }
 
     fn segments(&self) -> Vec<usize> {

@@ -296,17 +296,22 @@ pub(super) fn structure_in(
 /// Per channel, the structure tests of `sim`'s residual on the fit samples (`dt` [s]
 /// apart), with the current model's mains lines ([`Prepared::lines`]).
 fn windows_in(p: &Prepared, resolution: &[f64], dt: f64, sim: &[Vec<f32>]) -> Vec<Vec<structure::Window>> {
+    let runs = p.run_ranges();
     p.meas
         .iter()
         .zip(sim)
         .zip(resolution)
-        .map(|((m, s), res)| {
-            let r: Vec<f64> = m.iter().zip(s).map(|(a, b)| f64::from(*b) - a).collect();
-            structure::time_windows(&r, dt, *res)
-        })
         .enumerate()
-        .map(|(c, mut w)| {
+        .map(|(c, ((m, s), res))| {
+            let r: Vec<f64> = m.iter().zip(s).map(|(a, b)| f64::from(*b) - a).collect();
+            let mut w = structure::time_windows(&r, dt, *res);
             w.add_lines(p.lines(c));
+            if let Some(sd) = p.stated.get(c).and_then(Option::as_ref) {
+                w.windows.extend(runs.iter().filter_map(|k| {
+                    let f = structure::fast_excess(&r[k.clone()], dt, sd.get(k.clone())?)?;
+                    Some(structure::Window { start: k.start + f.start, ..f })
+                }));
+            }
             w.windows
         })
         .collect()

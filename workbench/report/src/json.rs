@@ -84,7 +84,7 @@ pub fn to_json(r: &CompareResult) -> Value {
                 let w: Vec<serde_json::Value> = c.structure.iter().map(|x| {
                     let t0 = r.time_s.get(x.start).copied().unwrap_or(f64::NAN);
                     let t1 = r.time_s.get(x.start + x.len - 1).copied().unwrap_or(f64::NAN);
-                    json!({"start_s": t0, "end_s": t1, "mean": x.mean, "energy_ratio": x.energy_ratio, "p": x.p, "chi2": x.chi2, "dof": x.dof, "line_hz": x.line_hz})
+                    json!({"start_s": t0, "end_s": t1, "mean": x.mean, "energy_ratio": x.energy_ratio, "p": x.p, "chi2": x.chi2, "dof": x.dof, "line_hz": x.line_hz, "fast": x.fast})
                 }).collect();
                 (c.name.clone(), json!(w))
             })),

@@ -86,9 +86,10 @@ fn local_structure(o: &mut String, r: &CompareResult) {
             .take(3)
             .map(|x| {
                 let t0 = r.time_s.get(x.start).copied().unwrap_or(x.start as f64 * dt);
-                let what = match x.line_hz {
-                    Some(_) => x.what(&c.unit),
-                    None => format!("mean {} {}", num(x.mean), c.unit),
+                let what = if x.line_hz.is_some() || x.fast {
+                    x.what(&c.unit)
+                } else {
+                    format!("mean {} {}", num(x.mean), c.unit)
                 };
                 format!(
                     "{:.1}–{:.1} s (error {:.1}x the noise, {what}, p {})",

@@ -2,7 +2,7 @@
 //! command's arguments (`#[command(flatten)]`), then turned once into the typed
 //! [`ModelOptions`] the libraries take.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use clap::{Args, ValueEnum};
@@ -12,6 +12,7 @@ use super::{ModelOptions, SensorModel};
 use simrod_io::datadir::ModelData;
 use simrod_io::effects_file::load_effects;
 use simrod_io::error::{CmdError, FileError};
+use simrod_vbench::noise::NoiseModel;
 
 /// DPU voltage range of the bench [V].
 pub const SUPPLY_V_RANGE: (f32, f32) = (12.0, 30.0);
@@ -58,6 +59,13 @@ pub struct SensorArgs {
     /// `simrod bench --noise none` run).
     #[arg(long, value_name = "S", default_value_t = SensorModel::bench().speed_window_s, value_parser = parse_speed_window, allow_negative_numbers = true)]
     pub speed_window_s: f64,
+    /// Noise the sensors are stated to have, in the bench's noise-file format
+    /// (workbench/examples/noise.toml; `default`: the SimRod bench's, that file's
+    /// values). Each analog channel's residual faster than 0.25 s is then tested over
+    /// each run against it, so model error that fast is not taken for noise. Without it
+    /// the noise is only what the residual shows.
+    #[arg(long, value_name = "default|FILE")]
+    pub sensor_noise: Option<PathBuf>,
 }
 
 impl Default for ModelArgs {
@@ -77,14 +85,19 @@ impl Default for ModelArgs {
 impl Default for SensorArgs {
     /// The SimRod bench's counting window.
     fn default() -> Self {
-        Self { speed_window_s: SensorModel::bench().speed_window_s }
+        Self { speed_window_s: SensorModel::bench().speed_window_s, sensor_noise: None }
     }
 }
 
 impl SensorArgs {
-    /// The sensor model these flags describe.
-    pub fn model(&self) -> SensorModel {
-        SensorModel::counting(self.speed_window_s)
+    /// The sensor model these flags describe (reads the stated noise's file).
+    pub fn model(&self) -> Result<SensorModel, CmdError> {
+        let stated = match self.sensor_noise.as_deref() {
+            None => None,
+            Some(p) if p == Path::new("default") => Some(NoiseModel::default()),
+            Some(p) => Some(NoiseModel::load(p).map_err(|e| file_error("--sensor-noise", e))?),
+        };
+        Ok(SensorModel { stated, ..SensorModel::counting(self.speed_window_s) })
     }
 }
 
@@ -250,7 +263,7 @@ mod tests {
         let o = cli.model.load().unwrap();
         assert_eq!(o.rates, RateSet::Programmed);
         assert_eq!(o.supply_v, 18.0);
-        assert_eq!(cli.sensors.model(), SensorModel::bench());
+        assert_eq!(cli.sensors.model().unwrap(), SensorModel::bench());
         assert!(<Cli as clap::Parser>::try_parse_from(["x", "--supply-v", "40"]).is_err());
         let d = <Cli as clap::Parser>::try_parse_from(["x"]).unwrap();
         assert_eq!(
@@ -259,6 +272,12 @@ mod tests {
             "Default = clap defaults"
         );
         assert_eq!(d.sensors.speed_window_s, SensorArgs::default().speed_window_s);
+        let stated = <Cli as clap::Parser>::try_parse_from(["x", "--sensor-noise", "default"]).unwrap();
+        assert_eq!(stated.sensors.model().unwrap().stated, Some(NoiseModel::default()));
+        let bad =
+            <Cli as clap::Parser>::try_parse_from(["x", "--sensor-noise", "/nonexistent/n.toml"]).unwrap();
+        let e = bad.sensors.model().unwrap_err().to_string();
+        assert!(e.contains("--sensor-noise") && e.contains("/nonexistent/n.toml"), "{e}");
         let missing = ModelArgs { data_dir: Some("/nonexistent/dir".into()), ..cli.model };
         assert!(missing.load().unwrap_err().to_string().contains("/nonexistent/dir"));
     }

@@ -214,6 +214,15 @@ impl MeasuredTwin {
         self.pair(effects, measured, self.grid.clone())
     }
 
+    /// Per channel of `channels`, the noise σ stated for each sample of the run (the
+    /// model's [`crate::SensorModel::stated_sigma`], its limit factor from the recorded
+    /// flange torques and SuT motor speed).
+    pub fn stated_sigma(&self, channels: &[Channel]) -> Vec<Option<Vec<f64>>> {
+        let series = |c: Channel| self.measured.iter().find(|(m, _)| *m == c).map(|(_, v)| v.as_slice());
+        let chans: Vec<Option<Channel>> = channels.iter().copied().map(Some).collect();
+        self.model.sensors.stated_sigma(&chans, series, self.inputs.len())
+    }
+
     /// As [`MeasuredTwin::align`], consuming the prepared run: its channels and grid
     /// move into the result instead of being copied (a long run held once, not twice).
     pub fn into_aligned(mut self, effects: Effects) -> Result<Aligned, TwinError> {

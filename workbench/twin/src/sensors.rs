@@ -7,7 +7,7 @@
 
 use model_core::Channel;
 
-use simrod_vbench::noise::Encoders;
+use simrod_vbench::noise::{Encoders, NoiseModel};
 
 /// The bench's sensor model as the twin's side of a comparison sees it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -18,11 +18,14 @@ pub struct SensorModel {
     pub speed_window_s: f64,
     /// Pulses per revolution of the encoders of [`SPEED_CHANNELS`] (0: not counted).
     pub ppr: [u32; 4],
+    /// The noise the user states the sensors have (`--sensor-noise`, the bench's noise
+    /// file); `None`: only what the residual itself shows is known of it.
+    pub stated: Option<NoiseModel>,
 }
 
 impl SensorModel {
     /// Speeds recorded exactly as simulated.
-    pub const NONE: Self = Self { speed_window_s: 0.0, ppr: [0; 4] };
+    pub const NONE: Self = Self { speed_window_s: 0.0, ppr: [0; 4], stated: None };
 
     /// The SimRod bench's encoders and counting window, as the virtual bench has them
     /// (`workbench/examples/noise.toml`).
@@ -36,7 +39,38 @@ impl SensorModel {
             return Self::NONE;
         }
         let e = Encoders::default();
-        Self { speed_window_s: window_s, ppr: [e.sut_motor_ppr, e.kistler_ppr, e.kistler_ppr, e.siemens_ppr] }
+        Self {
+            speed_window_s: window_s,
+            ppr: [e.sut_motor_ppr, e.kistler_ppr, e.kistler_ppr, e.siemens_ppr],
+            stated: None,
+        }
+    }
+
+    /// Per channel of `channels` (`None`: one derived from others; `series` gives each
+    /// recorded channel's `n` samples), the noise
+    /// σ stated for each sample [the channel's unit]: `sigma + g · at_limit` with `g` the
+    /// bench's limit factor from the recorded flange torques and SuT motor speed (0 where
+    /// one is not recorded). `None` for a counted speed (its counting error is
+    /// correlated over the window, not white), a channel without a sensor model, or
+    /// when no noise is stated.
+    pub fn stated_sigma<'a>(
+        &self,
+        channels: &[Option<Channel>],
+        series: impl Fn(Channel) -> Option<&'a [f64]>,
+        n: usize,
+    ) -> Vec<Option<Vec<f64>>> {
+        let Some(nm) = self.stated else { return vec![None; channels.len()] };
+        let at = |c: Channel, k: usize| series(c).and_then(|v| v.get(k).copied()).filter(|v| v.is_finite());
+        let g: Vec<f64> = (0..n)
+            .map(|k| {
+                let v = |c| at(c, k).unwrap_or(0.0);
+                nm.limits.factor(v(Channel::CKistlerL), v(Channel::CKistlerR), v(Channel::SuTMotorEnc))
+            })
+            .collect();
+        channels
+            .iter()
+            .map(|c| c.and_then(|c| nm.gauss(c)).map(|p| g.iter().map(|g| p.sigma_at(*g)).collect()))
+            .collect()
     }
 
     /// RMS of the counting error on channel `ch` [rpm], if it is counted: one pulse in
@@ -191,6 +225,22 @@ pub fn half_width(window_s: f64, dt: f64) -> usize {
 mod tests {
     use super::*;
     use simrod_vbench::encoder::{windowed_rpm, Encoder};
+
+    /// The stated σ follows the bench's limit factor sample by sample (the flange
+    /// torque half way into its ramp: the torque's and the DC current's `at_limit` half
+    /// added); a counted speed and a derived channel have none, nor anything unstated.
+    #[test]
+    fn stated_noise_follows_the_operating_limits() {
+        let torque = [0.0, 95.0, 200.0];
+        let series = |c: Channel| (c == Channel::CKistlerR).then_some(&torque[..]);
+        let chans = [Some(Channel::CKistlerL), Some(Channel::IDc), Some(Channel::SiemensEnc), None];
+        let stated = SensorModel { stated: Some(NoiseModel::default()), ..SensorModel::bench() };
+        let sd = stated.stated_sigma(&chans, series, 3);
+        assert_eq!(sd[0].as_deref(), Some(&[0.3, 0.3 + 0.5 * 2.5, 0.3 + 2.5][..]));
+        assert_eq!(sd[1].as_deref(), Some(&[0.1, 0.1 + 0.5 * 0.5, 0.1 + 0.5][..]));
+        assert!(sd[2].is_none() && sd[3].is_none());
+        assert!(SensorModel::bench().stated_sigma(&chans, series, 3).iter().all(Option::is_none));
+    }
 
     #[test]
     fn matches_a_fine_encoder() {

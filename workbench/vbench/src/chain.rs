@@ -247,18 +247,13 @@ fn sensor(
         let half = ((enc.window_s / (2.0 * dt)).round() as usize).max(1);
         windowed_rpm(&counts, ppr, dt, half)
     };
+    if let Some(p) = nm.gauss(c) {
+        return gauss(p);
+    }
     match c {
-        Channel::CKistlerL | Channel::CKistlerR => gauss(nm.torque),
         Channel::TKistlerL | Channel::TKistlerR => encoder(enc.kistler_ppr, false),
         Channel::SuTMotorEnc => encoder(enc.sut_motor_ppr, false),
         Channel::SiemensEnc => encoder(enc.siemens_ppr, opts.miscount),
-        Channel::IXlml22 | Channel::IXlmlBu1 => gauss(nm.current.xlml),
-        Channel::IXlmr23 => gauss(nm.current.xlmr),
-        Channel::IDpu27 => gauss(nm.current.dpu),
-        Channel::IDc => gauss(nm.current.dc),
-        Channel::VDcBusbars => gauss(nm.voltage.busbars),
-        Channel::VDc => gauss(nm.voltage.dc),
-        Channel::Throttle => gauss(nm.voltage.throttle),
         // A channel added to MEASURED later has no sensor model yet: exact.
         _ => exact.iter().map(|v| f64::from(*v)).collect(),
     }

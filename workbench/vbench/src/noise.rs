@@ -11,6 +11,7 @@
 
 use std::path::Path;
 
+use model_core::Channel;
 use serde::Deserialize;
 
 use simrod_io::error::FileError;
@@ -193,6 +194,22 @@ impl Default for NoiseModel {
 }
 
 impl NoiseModel {
+    /// The Gaussian noise of analog channel `c`; `None` for a counted speed (its error
+    /// is the encoder's counting, [`Encoders`]) or a channel without a sensor model.
+    pub fn gauss(&self, c: Channel) -> Option<Gauss> {
+        Some(match c {
+            Channel::CKistlerL | Channel::CKistlerR => self.torque,
+            Channel::IXlml22 | Channel::IXlmlBu1 => self.current.xlml,
+            Channel::IXlmr23 => self.current.xlmr,
+            Channel::IDpu27 => self.current.dpu,
+            Channel::IDc => self.current.dc,
+            Channel::VDcBusbars => self.voltage.busbars,
+            Channel::VDc => self.voltage.dc,
+            Channel::Throttle => self.voltage.throttle,
+            _ => return None,
+        })
+    }
+
     /// Read a noise file; unknown keys and out-of-range values are errors.
     pub fn load(path: &Path) -> Result<Self, FileError> {
         let text = std::fs::read_to_string(path).map_err(|e| FileError::io(path, &e))?;
