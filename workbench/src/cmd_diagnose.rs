@@ -162,6 +162,8 @@ pub struct DiagSetup {
     pub base: Effects,
     pub effects_path: Option<PathBuf>,
     pub speed_window_s: f64,
+    /// `--sensor-noise` as given (`None`: the noise is estimated from the residual).
+    pub sensor_noise: Option<PathBuf>,
     pub notes: Vec<String>,
 }
 
@@ -340,6 +342,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
             base,
             effects_path: args.model.effects.clone(),
             speed_window_s: args.sensors.speed_window_s,
+            sensor_noise: args.sensors.sensor_noise.clone(),
             notes,
         },
         diagnosis,
@@ -446,12 +449,13 @@ pub fn render(d: &Diagnosed) -> String {
     let mut o = String::new();
     o.push_str(&format!("simrod diagnose: {}\n", s.source));
     o.push_str(&format!(
-        "  {} samples, {:.3} s, model step {} µs; {} channels fitted; speed window {} s\n",
+        "  {} samples, {:.3} s, model step {} µs; {} channels fitted; speed window {} s; sensor noise {}\n",
         s.samples,
         s.duration_s,
         s.dt_us,
         s.channels.len(),
-        s.speed_window_s
+        s.speed_window_s,
+        s.sensor_noise.as_ref().map_or("estimated".to_string(), |p| format!("stated ({})", p.display()))
     ));
     o.push_str(&format!(
         "  current effects{}: {}\n",
@@ -730,6 +734,7 @@ pub fn to_json(d: &Diagnosed) -> Value {
             "current_effects": summarize_effects(&s.base),
             "effects_file": s.effects_path.as_ref().map(|p| p.display().to_string()),
             "speed_window_s": s.speed_window_s,
+            "sensor_noise": s.sensor_noise.as_ref().map(|p| p.display().to_string()),
             "notes": s.notes,
         },
         "timing_s": {"load_align": d.timing.0, "engine": d.timing.1},

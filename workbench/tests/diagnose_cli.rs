@@ -232,6 +232,7 @@ fn fast_error_is_not_noise_when_the_noise_is_stated() {
     assert_ne!(j["kind"], "nothing_missing", "{}", j["verdict"]);
     assert_eq!(j["unexplained"]["channel"], "I_DC", "{}", j["verdict"]);
     assert!(j["verdict"].as_str().unwrap().contains("the noise stated for the sensor"), "{}", j["verdict"]);
+    assert_eq!(j["setup"]["sensor_noise"], "default");
     let j = diagnose("m.csv", true);
     assert_eq!(j["kind"], "nothing_missing", "{}", j["verdict"]);
     let c: Value = serde_json::from_str(&ok(&simrod(
