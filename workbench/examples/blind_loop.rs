@@ -39,9 +39,10 @@
 //! - **found**: a hidden library effect that moves a channel of the scenario's run (the
 //!   truth file's `moves`, [`excited_ids`]) is in the final file; the 95 % interval
 //!   stated beside the value that file holds (the last round naming it) holds the truth
-//!   (coverage, [`stated_interval`]). Found is also printed apart for the cases with the
-//!   maps as identified and those with the maps perturbed: beside a wrong map many
-//!   effects are ones the maps' stated uncertainty could give.
+//!   (coverage, [`stated_interval`]). Found and coverage are also printed apart for the
+//!   cases with the maps as identified and those with the maps perturbed: beside a wrong
+//!   map many effects are ones the maps' stated uncertainty could give, and an interval
+//!   holds that uncertainty, which only a perturbed map realises.
 //!
 //! Seeds: the proof uses seeds from 1,000,000 on, never used while developing (tuning
 //! used 500,000 on); `--first` moves them. `--check` exits 1 when a target is missed
@@ -770,6 +771,13 @@ fn summary(o: &[Outcome]) -> bool {
     }
     println!("nothing hidden, nothing claimed: {}  (target >= 98 %)", pct(quiet, hidden_none));
     println!("95 % intervals covering the truth: {}  (target 90-99 %)", pct(cin, ctot));
+    // An interval holds the data's stated uncertainty, which only a perturbed map
+    // realises: apart, the maps as identified show how much of the width that is.
+    let cov_where = |maps: bool| {
+        o.iter().filter(|x| x.maps == maps).fold((0, 0), |a, x| (a.0 + x.coverage.0, a.1 + x.coverage.1))
+    };
+    let ((ii, it), (pi, pt)) = (cov_where(false), cov_where(true));
+    println!("  maps as identified {}, maps perturbed {}", pct(ii, it), pct(pi, pt));
     let rate = |a: usize, b: usize| if b == 0 { 1.0 } else { a as f64 / b as f64 };
     let cov = rate(cin, ctot);
     rate(honest, total) >= 0.95
