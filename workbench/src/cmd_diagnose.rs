@@ -315,7 +315,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
             let mut stated = r.stated;
             let mine =
                 fitted.channels.iter().map(|c| stated.iter_mut().find(|(s, _)| s == c)?.1.take()).collect();
-            RecordedTwin::new(r.twin, fitted.channels.clone()).with_stated(mine)
+            RecordedTwin::with_stated(r.twin, fitted.channels.clone(), mine)
         })
         .collect();
     let campaign = Campaign::new(twins).map_err(|e| CmdError::Usage(format!("{src}: {e}")))?;

@@ -244,12 +244,10 @@ pub fn compare_prepared(
             let top = budget::top_combined(&b, opts.top_regions);
             let worst = spans::worst_spans(time_s, &e, window, opts.spans);
             let resolution = Channel::from_name(&p.name).and_then(|c| opts.model.sensors.counting_step(c));
-            let fast = stated_of(&p.name).and_then(|sd| structure::fast_excess(&e, dt_s, sd));
-            tested_windows.push((!p.derived).then(|| {
-                let mut w = structure::windows(&e, dt_s, resolution.unwrap_or(0.0));
-                w.windows.extend(fast);
-                w
-            }));
+            tested_windows.push(
+                (!p.derived)
+                    .then(|| structure::windows(&e, dt_s, resolution.unwrap_or(0.0), stated_of(&p.name))),
+            );
             let mut whiteness = st.whiteness;
             if whiteness.verdict == residual::Verdict::Coloured && within_resolution(opts, &p.name, m.rmse) {
                 whiteness.verdict = residual::Verdict::Resolution;

@@ -20,6 +20,10 @@
 //! [`MAINS_DRIFT_HZ`] of each, against the mean of its neighbours 1.5–3 Hz away (noise
 //! alone makes their ratio exponential with mean 1). The twin has no mains content, so a
 //! line there is structure it cannot explain; it is one more tested "window" of the run.
+//!
+//! When the sensor's noise is stated, the run's residual faster than the noise estimate's
+//! moving average is tested against it too ([`fast_excess`]): the estimate takes model
+//! error that fast for noise, a statement does not.
 
 use simrod_numerics::stats::{mad_sigma, moving_mean};
 
@@ -129,11 +133,13 @@ impl ChannelWindows {
 /// gaps, are left out of their block; a block less than half finite is left out), and
 /// its mains lines ([`lines`]). `resolution` [unit]: the largest error the sensor makes
 /// by design (a tachometer: one count per window; 0 for none): a residual within it is
-/// never material, however regular.
-pub fn windows(r: &[f64], dt: f64, resolution: f64) -> ChannelWindows {
+/// never material, however regular. `stated`: the noise σ stated for the sensor on each
+/// sample, when it is, adds the run's test of the residual's fast part ([`fast_excess`]).
+pub fn windows(r: &[f64], dt: f64, resolution: f64, stated: Option<&[f64]>) -> ChannelWindows {
     let mut w = time_windows(r, dt, resolution);
     // Lazy: not computed when the channel tests nothing.
     w.add_lines(mains_lines(r, dt, w.noise_sigma.max(resolution)));
+    w.windows.extend(stated.and_then(|sd| fast_excess(r, dt, sd)));
     w
 }
 
@@ -624,8 +630,11 @@ mod tests {
             assert!(w.flagged_at(threshold(100)) && w.fast, "seed {seed}: {w:?}");
             // The error's mean square 0.005 over σ²: 1/σ² is 100 on two thirds, 11.1 on one.
             assert!((w.energy_ratio - (1.0 + 0.005 * 70.37)).abs() < 0.05, "seed {seed}: {w:?}");
-            let tw = windows(&err, dt, 0.0);
+            let tw = windows(&err, dt, 0.0, None);
             assert_eq!(tw.flagged(threshold(tw.windows.len())).count(), 0, "seed {seed}");
+            let stated = windows(&err, dt, 0.0, Some(&sd));
+            let flagged: Vec<&Window> = stated.flagged(threshold(stated.windows.len())).collect();
+            assert_eq!(flagged, [&w], "seed {seed}: the one window the statement adds");
         }
     }
 
@@ -659,7 +668,7 @@ mod tests {
                     r[k] = a * r[k - 1] + (1.0 - a) * r[k];
                 }
             }
-            let w = windows(&r, 1e-3, 0.0);
+            let w = windows(&r, 1e-3, 0.0, None);
             let th = threshold(w.windows.len());
             flagged += usize::from(w.flagged(th).count() > 0);
         }
@@ -691,7 +700,7 @@ mod tests {
         for (seed, dt, f, amp) in [(1, 1e-3, 50.03, 0.94), (2, 2e-3, 59.9, 0.94), (3, 1e-3, 50.0, 0.4)] {
             let sigma = if amp > 0.5 { 0.9 } else { 0.5 };
             let r = with_line(noise(seed, (60.0 / dt) as usize, sigma), dt, f, amp);
-            let w = windows(&r, dt, 0.0);
+            let w = windows(&r, dt, 0.0, None);
             let th = threshold(w.windows.len());
             let lines: Vec<&Window> = w.flagged(th).filter(|x| x.line_hz.is_some()).collect();
             assert_eq!(lines.len(), 1, "{f} Hz, amplitude {amp}: {lines:?}");
@@ -716,14 +725,14 @@ mod tests {
                     r[k] = a * r[k - 1] + (1.0 - a) * r[k];
                 }
             }
-            let w = windows(&r, 1e-3, 0.0);
+            let w = windows(&r, 1e-3, 0.0, None);
             false_lines += w.flagged(threshold(w.windows.len())).filter(|x| x.line_hz.is_some()).count();
         }
         assert!(false_lines <= 2, "{false_lines} lines in 200 noise-only runs");
-        let away = windows(&with_line(noise(7, 60_000, 0.9), 1e-3, 40.0, 0.94), 1e-3, 0.0);
+        let away = windows(&with_line(noise(7, 60_000, 0.9), 1e-3, 40.0, 0.94), 1e-3, 0.0, None);
         assert_eq!(away.flagged(threshold(away.windows.len())).count(), 0);
         // 0.2 of σ 0.9: RMS 1.012x the noise, far below the material 1.25x.
-        let small = windows(&with_line(noise(8, 60_000, 0.9), 1e-3, 50.0, 0.2), 1e-3, 0.0);
+        let small = windows(&with_line(noise(8, 60_000, 0.9), 1e-3, 50.0, 0.2), 1e-3, 0.0, None);
         let th = threshold(small.windows.len());
         assert!(small.windows.iter().any(|x| x.line_hz.is_some() && x.p < th), "the small line is seen");
         assert_eq!(small.flagged(th).count(), 0, "but not material");
@@ -739,7 +748,7 @@ mod tests {
                 *v += 4.0 * (-(k as f64) / 100.0).exp();
             }
         }
-        let w = windows(&r, 1e-3, 0.0);
+        let w = windows(&r, 1e-3, 0.0, None);
         let th = threshold(w.windows.len());
         let hits: Vec<&Window> = w.flagged(th).collect();
         assert!(!hits.is_empty());
@@ -792,7 +801,7 @@ mod tests {
                 .enumerate()
                 .map(|(k, v)| if (20_000..40_000).contains(&k) { 3.0 * v } else { *v })
                 .collect();
-            let w = windows(&r, 1e-3, 0.0);
+            let w = windows(&r, 1e-3, 0.0, None);
             assert_eq!(w.flagged(threshold(w.windows.len())).count(), 0, "seed {seed}");
         }
     }
@@ -809,7 +818,7 @@ mod tests {
         }
         let est = noise_sigma(&r, 125, 0.0);
         assert!((est - 1.0).abs() < 0.02, "estimated {est}");
-        let w = windows(&r, 1e-3, 0.0);
+        let w = windows(&r, 1e-3, 0.0, None);
         let th = threshold(w.windows.len());
         assert!(w.flagged(th).any(|x| x.start <= 41_042 && 41_069 <= x.start + x.len), "burst not flagged");
     }
@@ -824,7 +833,7 @@ mod tests {
                 .enumerate()
                 .map(|(k, v)| if (k / 500) % 10 == 3 { 6.0 * v } else { *v })
                 .collect();
-            let w = windows(&r, 1e-3, 0.0);
+            let w = windows(&r, 1e-3, 0.0, None);
             assert_eq!(w.flagged(threshold(w.windows.len())).count(), 0, "seed {seed}");
             let mean_var = r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64;
             let est = noise_sigma(&r, 125, 0.0);
@@ -836,7 +845,7 @@ mod tests {
     #[test]
     fn a_tiny_offset_is_not_material() {
         let r: Vec<f64> = noise(9, 60_000, 1.0).iter().map(|v| v + 0.2).collect();
-        let w = windows(&r, 1e-3, 0.0);
+        let w = windows(&r, 1e-3, 0.0, None);
         let th = threshold(w.windows.len());
         assert!(w.windows.iter().any(|x| x.p < th), "the offset is significant");
         assert_eq!(w.flagged(th).count(), 0, "but not material");
@@ -849,9 +858,9 @@ mod tests {
         let wiggle = noise(11, 60_000, 0.01);
         let r: Vec<f64> =
             (0..60_000).map(|k| if (k / 1500) % 2 == 0 { 0.8 } else { -0.8 } + wiggle[k]).collect();
-        let w = windows(&r, 1e-3, 3.0 / 12f64.sqrt());
+        let w = windows(&r, 1e-3, 3.0 / 12f64.sqrt(), None);
         let th = threshold(w.windows.len());
         assert_eq!(w.flagged(th).count(), 0);
-        assert!(windows(&r, 1e-3, 0.0).flagged(th).count() > 0, "material without the resolution");
+        assert!(windows(&r, 1e-3, 0.0, None).flagged(th).count() > 0, "material without the resolution");
     }
 }

@@ -243,15 +243,9 @@ fn full_rate_windows(
             let mut out = Vec::new();
             for len in segments {
                 let to = (from + len).min(r.len());
-                let fast = stated
-                    .get(c)
-                    .and_then(Option::as_ref)
-                    .and_then(|sd| structure::fast_excess(&r[from..to], dt, sd.get(from..to)?));
-                let run = structure::windows(&r[from..to], dt, res).windows.into_iter().chain(fast);
-                out.extend(run.map(|w| Window {
-                    start: (from + w.start).div_ceil(stride),
-                    len: (w.len / stride).max(1),
-                    ..w
+                let sd = stated.get(c).and_then(Option::as_ref).and_then(|sd| sd.get(from..to));
+                out.extend(structure::windows(&r[from..to], dt, res, sd).windows.into_iter().map(|w| {
+                    Window { start: (from + w.start).div_ceil(stride), len: (w.len / stride).max(1), ..w }
                 }));
                 from = to;
             }

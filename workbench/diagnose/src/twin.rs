@@ -19,24 +19,23 @@ pub struct RecordedTwin {
     /// The physical values of one run ([`Twin::hold_physics`]): effects that change only
     /// the measurement chain from it are replayed over them, not simulated.
     physics: OnceLock<Physical>,
-    /// Per channel, the noise σ stated for each sample ([`RecordedTwin::with_stated`]).
+    /// Per channel, the noise σ stated for each sample (`None`: not stated).
     stated: Vec<Option<Vec<f64>>>,
 }
 
 impl RecordedTwin {
-    /// The twin on `twin`'s run, returning `channels`.
+    /// The twin on `twin`'s run, returning `channels`, with the noise stated for them
+    /// from the run's measured channels ([`MeasuredTwin::stated_sigma`]).
     pub fn new(twin: MeasuredTwin, channels: Vec<Channel>) -> Self {
         let stated = twin.stated_sigma(&channels);
-        Self { twin, channels, physics: OnceLock::new(), stated }
+        Self::with_stated(twin, channels, stated)
     }
 
-    /// The noise σ stated per channel and sample, when the run's measured channels were
-    /// taken out of `twin` before [`RecordedTwin::new`] (`simrod diagnose` holds a long
-    /// run once): computed from them while they were there
-    /// ([`MeasuredTwin::stated_sigma`]).
-    pub fn with_stated(mut self, stated: Vec<Option<Vec<f64>>>) -> Self {
-        self.stated = stated;
-        self
+    /// As [`RecordedTwin::new`] with the stated noise per channel and sample given: when
+    /// the run's measured channels were taken out of `twin` (`simrod diagnose` holds a
+    /// long run once), it was computed from them while they were there.
+    pub fn with_stated(twin: MeasuredTwin, channels: Vec<Channel>, stated: Vec<Option<Vec<f64>>>) -> Self {
+        Self { twin, channels, physics: OnceLock::new(), stated }
     }
 
     /// The samples `keep` names with `fx`: replayed when only the chain differs from the
