@@ -53,13 +53,18 @@ fn hidden_axle_friction_is_named_and_its_effect_file_closes_the_gap() {
     let right = lead["params"]["right"].as_f64().unwrap();
     assert!((left - 1.3).abs() < 0.02, "left {left}");
     assert!((right - 1.0).abs() < 0.02, "right {right}");
-    // The run pins the scale down (its statistical σ); the friction map's own stated
-    // uncertainty (1.76 N m on curves of ~20 N m, table 5.7) is in the σ reported too.
+    // The run pins the scale down (its statistical σ); the identified data's stated
+    // uncertainty is in the σ reported too, as far as the run leaves it: it tells the
+    // friction map's shapes apart from the scale (the map's friction is in the SuT
+    // power map, the scale's is not, so the currents differ), but not the SuT power
+    // map's drive scale, which the scale's response is 91 % of in energy. Without that
+    // guard (`systematic::ALIASED`) the share read 0.0015; with the whole stated
+    // uncertainty, 0.145.
     let sd = lead["uncertainty"]["left"].as_f64().unwrap();
     let data = lead["uncertainty_data"]["left"].as_f64().unwrap();
     let stat = (sd * sd - data * data).sqrt();
     assert!(stat > 0.0 && stat < 0.01, "statistical std {stat}");
-    assert!(data > 0.03 && data < 0.3, "the friction map's share {data}");
+    assert!(data > 0.01 && data < 0.1, "the data's share {data}");
     assert!(lead["error_reduction"].as_f64().unwrap() > 0.9);
     assert_eq!(lead["significant"], true);
     // Every physical effect of the library is ranked; a channel's measurement chain only

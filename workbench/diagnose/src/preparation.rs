@@ -59,9 +59,9 @@ pub(super) struct Prepared {
     pub excess: f64,
     /// `e0 / e_noise`.
     pub excess_ratio: f64,
-    /// Each uncertain item of the identified data's response to one σ of it,
-    /// `[item][channel][fit sample]` ([`super::systematic`]); empty when not known.
-    pub data_items: Vec<Vec<Vec<f64>>>,
+    /// Each uncertain item of the identified data's response to one σ of each of its
+    /// shapes ([`super::systematic`]); empty when not known.
+    pub data_items: super::systematic::Items,
     /// Whether the twin's data carries an empirical correction of an earlier round.
     pub data_corrected: bool,
 }
@@ -205,7 +205,7 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         e_noise: 0.0,
         excess: 0.0,
         excess_ratio: 0.0,
-        data_items: Vec::new(),
+        data_items: Default::default(),
         data_corrected: false,
     };
     p.e0 = energy(&p, &p.base_sim);

@@ -42,7 +42,7 @@ pub(super) struct Spread {
     /// much unexplained still shows an effect is needed, but not its value.
     pub reported: Vec<f64>,
     /// Of `reported`, the part the identified data's uncertainty contributes
-    /// ([`systematic_std`], added in quadrature).
+    /// ([`systematic_std`]'s posterior: as the run leaves the items, added in quadrature).
     pub data: Vec<f64>,
     /// A parameter whose value walks over the run ([`drift`], on the sandwich's σ: what
     /// noise alone moves the estimates by).
@@ -69,6 +69,7 @@ pub(super) fn parameter_std(
         .map(|(m, s)| p.idx.iter().map(|&t| m[t] - f64::from(s[t])).collect())
         .collect();
     let mut std = sandwich_std(&p.weights, &resid, &fit.jac, level_win, 2 * level_win);
+    let sandwich = std.clone();
     let drift = drift(p, &resid, fit, specs, starts, &std);
     let folds: Vec<usize> = p.idx.iter().map(|&t| p.folds.get(t).copied().unwrap_or(0)).collect();
     if let Some(jack) = fold_jackknife_std(&p.weights, &resid, &fit.jac, &folds) {
@@ -103,8 +104,8 @@ pub(super) fn parameter_std(
     // What the identified data's own uncertainty moves the values by: reported, not
     // tested (a systematic error of the value, not evidence against the effect).
     let determined: Vec<bool> = std.iter().map(|sd| sd.is_finite()).collect();
-    let data = systematic_std(&p.weights, &fit.jac, &determined, &p.data_items);
-    let reported = with(birge).into_iter().zip(&data).map(|(r, d)| r.hypot(*d)).collect();
+    let data = systematic_std(&p.weights, (&fit.jac, &resid), &determined, &p.data_items, &sandwich);
+    let reported = with(birge).into_iter().zip(&data.posterior).map(|(r, d)| r.hypot(*d)).collect();
     // Once a round had to correct the data, it is shown to be off, and a table corrects
     // only what it could locate: an effect new to the model must stand out of what the
     // data's stated uncertainty could give (on the tuning seeds 500,580–659, 4 of 5
@@ -112,13 +113,13 @@ pub(super) fn parameter_std(
     // neutral value is new; one already in the model is refitted on the statistical σ.
     let mut std = with(1.0);
     if p.data_corrected {
-        for ((sd, d), (sp, s0)) in std.iter_mut().zip(&data).zip(specs.iter().zip(starts)) {
+        for ((sd, d), (sp, s0)) in std.iter_mut().zip(&data.prior).zip(specs.iter().zip(starts)) {
             if *s0 == sp.neutral {
                 *sd = sd.hypot(*d);
             }
         }
     }
-    Spread { reported, std, data, drift }
+    Spread { reported, std, data: data.posterior, drift }
 }
 
 /// The factor a fit's statistical σ is widened by for the error it leaves unexplained:
@@ -496,7 +497,9 @@ mod tests {
         let meas: Vec<f64> = noise.iter().map(|e| 0.05 * e).collect();
         let base = vec![vec![0.0f32; n]];
         let mut p = Prepared::single_run(vec![meas], vec![("I_DC", 0.05)], base);
-        p.data_items = vec![vec![ramp.iter().map(|v| 0.5 * v).collect()]];
+        let item = vec![ramp.iter().map(|v| 0.5 * v).collect()];
+        let items = vec![super::super::systematic::Item { j: item, stated: true, var: 1.0 }];
+        p.data_items = super::super::systematic::Items::new(&p.weights, items);
         let lib = super::super::library::library(&model_core::Params::default());
         let spec = lib.iter().find(|s| s.effect == "differential_friction").expect("a library effect");
         let fit = Fit {
