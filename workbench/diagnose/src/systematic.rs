@@ -33,7 +33,8 @@ use super::linalg::{solve_spd, sub_matrix};
 use super::preparation::{run_each, Prepared, Weights};
 use super::sensitivities::normal_equations_by;
 
-/// One uncertain item's response, `[channel][fit sample]`, at one σ of its shape.
+/// One uncertain item's response, `[channel][fit sample]`, at one σ of its shape (inside
+/// [`Items`], weighted: `W j`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Item {
     pub j: Vec<Vec<f64>>,
@@ -238,31 +239,49 @@ fn scale_interior(m: &mut Map1, rel: f64, shape: Shape) {
 /// twin's data and the current model; none when the twin's data cannot be changed.
 pub(super) fn responses(twin: &dyn Twin, p: &Prepared, o: &Options) -> Items {
     let Some(base) = twin.data() else { return Items::default() };
-    let jobs = moved_data(&base, &Uncertainty::thesis());
-    let runs = run_each(&jobs, o, |(_, d, _)| twin.run_data(d, &o.base, p.stride));
+    let (stated, others): (Vec<Moved>, Vec<Moved>) =
+        moved_data(&base, &Uncertainty::thesis()).into_iter().partition(|m| m.2);
+    let stem = |name: &str| {
+        [" tilt", " shift", " scale"].iter().find_map(|x| name.strip_suffix(x)).unwrap_or(name).to_owned()
+    };
     // A map's shapes share its variance; a parameter group has one.
-    let shapes =
-        |name: &str| if jobs.iter().any(|(n, _, _)| *n == format!("{name} tilt")) { 3.0 } else { 1.0 };
-    let items = jobs
-        .iter()
-        .zip(runs)
-        .filter_map(|((name, _, stated), out)| {
-            let out = out.ok()?;
-            let j = out
-                .iter()
-                .zip(&p.base_sim)
+    let maps: Vec<String> = others.iter().map(|m| stem(&m.0)).collect();
+    let var = |name: &str| if maps.iter().any(|m| m == name) { 1.0 / 3.0 } else { 1.0 };
+    let respond = |jobs: &[Moved]| -> Vec<Option<Vec<Vec<f64>>>> {
+        let runs = run_each(jobs, o, |(_, d, _)| twin.run_data(d, &o.base, p.stride));
+        let diff = |out: Vec<Vec<f32>>| -> Vec<Vec<f64>> {
+            let per_channel = out.iter().zip(&p.base_sim);
+            per_channel
                 .map(|(a, b)| p.idx.iter().map(|&t| f64::from(a[t]) - f64::from(b[t])).collect())
-                .collect();
-            let stem =
-                [" tilt", " shift", " scale"].iter().find_map(|x| name.strip_suffix(x)).unwrap_or(name);
-            Some(Item { j, stated: *stated, var: 1.0 / shapes(stem) })
-        })
+                .collect()
+        };
+        runs.into_iter().map(|r| r.ok().map(diff)).collect()
+    };
+    let first = respond(&stated);
+    // A map the run does not reach in its stated shape (a reverse speed map on a
+    // forward run, a regenerating region never entered) is not reached in the others
+    // either: those simulations are skipped.
+    let reached: Vec<&str> = stated
+        .iter()
+        .zip(&first)
+        .filter(|(_, j)| j.as_ref().is_some_and(|j| j.iter().flatten().any(|v| *v != 0.0)))
+        .map(|(m, _)| m.0.as_str())
+        .collect();
+    let others: Vec<Moved> = others.into_iter().filter(|m| reached.contains(&stem(&m.0).as_str())).collect();
+    let second = respond(&others);
+    let items = stated
+        .iter()
+        .zip(first)
+        .chain(others.iter().zip(second))
+        .filter_map(|(m, j)| Some(Item { j: j?, stated: m.2, var: var(&stem(&m.0)) }))
         .collect();
     Items::new(&p.weights, items)
 }
 
-/// The items' responses with their Gram matrix `K'WK` (`[item][item]` row-major), which
-/// every refit's joint fit ([`item_moment`]) shares.
+/// The items' responses weighted by `W` (`W j_m`, so that every product with them is a
+/// plain dot product: the weights are looked up once, not per refit), with their Gram
+/// matrix `K'WK` (`[item][item]` row-major), which every refit's joint fit
+/// ([`item_moment`]) shares.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Items {
     pub shapes: Vec<Item>,
@@ -270,19 +289,34 @@ pub struct Items {
 }
 
 impl Items {
-    /// `shapes` with their Gram matrix under the weights `w`.
-    pub fn new(w: &Weights, shapes: Vec<Item>) -> Self {
+    /// `shapes` with their Gram matrix under the weights `w`; each shape's `j` is kept
+    /// weighted (`W j`).
+    pub fn new(w: &Weights, mut shapes: Vec<Item>) -> Self {
         let m = shapes.len();
+        let weighted: Vec<Vec<Vec<f64>>> = shapes.iter().map(|it| weigh(w, &it.j)).collect();
         let mut gram = vec![0.0; m * m];
         for p in 0..m {
             for q in 0..=p {
-                let v = weighted_dot(w, &shapes[p].j, &shapes[q].j);
+                let v = dot3(&weighted[p], &shapes[q].j);
                 gram[p * m + q] = v;
                 gram[q * m + p] = v;
             }
         }
+        for (it, wj) in shapes.iter_mut().zip(weighted) {
+            it.j = wj;
+        }
         Self { shapes, gram }
     }
+}
+
+/// `W x` (`[channel][fit sample]`).
+fn weigh(w: &Weights, x: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    x.iter().enumerate().map(|(c, xc)| xc.iter().enumerate().map(|(t, v)| w.at(c, t) * v).collect()).collect()
+}
+
+/// `Σ_c Σ_t x_ct y_ct`.
+fn dot3(x: &[Vec<f64>], y: &[Vec<f64>]) -> f64 {
+    x.iter().zip(y).map(|(a, b)| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>()).sum()
 }
 
 /// The systematic σ of a refit's parameters (Jacobian `jac[parameter][channel][fit
@@ -368,14 +402,12 @@ impl Joint {
     ) -> Option<Self> {
         let (g, _) = normal_equations_by(w, jac, |_, _| 0.0, 1, |_, _| 0);
         let g = sub_matrix(&g[0], jac.len(), ix);
-        let c: Vec<Vec<f64>> = ix
-            .iter()
-            .map(|&i| items.shapes.iter().map(|it| weighted_dot(w, &jac[i], &it.j)).collect())
-            .collect();
+        let c: Vec<Vec<f64>> =
+            ix.iter().map(|&i| items.shapes.iter().map(|it| dot3(&jac[i], &it.j)).collect()).collect();
         let b: Vec<f64> = ix
             .iter()
             .map(|&i| weighted_dot(w, &jac[i], resid))
-            .chain(items.shapes.iter().map(|it| weighted_dot(w, &it.j, resid)))
+            .chain(items.shapes.iter().map(|it| dot3(&it.j, resid)))
             .collect();
         let m = items.shapes.len();
         let mut a = vec![vec![0.0; m]; ix.len()];
