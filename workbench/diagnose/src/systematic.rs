@@ -25,6 +25,8 @@
 
 use std::sync::Arc;
 
+use simrod_numerics::stats::rms;
+
 use simrod_io::datadir::{Map1, Map2, ModelData, ParamLine};
 use simrod_io::map_uncertainty::{Uncertainty, REGION_WIDTH_PCT};
 
@@ -163,23 +165,13 @@ fn unit(xs: &[f32], x: f64) -> f64 {
     }
 }
 
-/// RMS of `v` (0 when empty).
-fn rms_of(v: impl Iterator<Item = f64>) -> f64 {
-    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
-    if n > 0 {
-        (s / n as f64).sqrt()
-    } else {
-        0.0
-    }
-}
-
 /// Friction magnitudes raised by `sd` [N m] away from standstill (tapered to 0 there
 /// over `taper` rpm, as the map is 0 at rest), keeping each value's sign; as a tilt, by
 /// `sd` times the tilt across `|x|`; as a scale, by `sd` times the magnitude over its
 /// RMS (a magnitude never crosses 0: friction opposes motion).
 fn shift_friction(m: &mut Map1, sd: f64, taper: f64, shape: Shape) {
     let top = m.x.iter().fold(0.0f64, |a, x| a.max(f64::from(x.abs())));
-    let size = rms_of(m.y.iter().map(|y| f64::from(*y)));
+    let size = rms(&m.y.iter().map(|y| f64::from(*y)).collect::<Vec<f64>>());
     for (y, x) in m.y.iter_mut().zip(&m.x) {
         let v = f64::from(*y);
         let x = f64::from(*x);
@@ -198,7 +190,7 @@ fn shift_friction(m: &mut Map1, sd: f64, taper: f64, shape: Shape) {
 /// the tilt across its first axis); as a shift, raised by `rel` times the map's RMS.
 fn scale2(m: &mut Map2, shape: Shape, rel: impl Fn(f64, f64, f64) -> f64) {
     let nx = m.x.len().max(1);
-    let size = rms_of(m.z.iter().map(|z| f64::from(*z)));
+    let size = rms(&m.z.iter().map(|z| f64::from(*z)).collect::<Vec<f64>>());
     for (i, z) in m.z.iter_mut().enumerate() {
         let (x, y) = (m.x.get(i % nx).copied().unwrap_or(0.0), m.y.get(i / nx).copied().unwrap_or(0.0));
         let v = f64::from(*z);
@@ -218,7 +210,7 @@ fn scale_interior(m: &mut Map1, rel: f64, shape: Shape) {
     let lo = m.y.first().copied().unwrap_or(0.0);
     let hi = m.y.iter().copied().fold(f32::NEG_INFINITY, f32::max);
     let inside = |y: f32| y > lo && y < hi;
-    let size = rms_of(m.y.iter().filter(|y| inside(**y)).map(|y| f64::from(*y)));
+    let size = rms(&m.y.iter().filter(|y| inside(**y)).map(|y| f64::from(*y)).collect::<Vec<f64>>());
     let xs = m.x.clone();
     let mut prev = f32::NEG_INFINITY;
     for (y, x) in m.y.iter_mut().zip(&xs) {
