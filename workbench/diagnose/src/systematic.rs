@@ -53,9 +53,16 @@ pub struct Item {
     pub replaced_by: Vec<&'static str>,
 }
 
-/// A shape of an uncertain item: its name, the data it moves, whether it is the item's
-/// stated shape, and the effects that replace its value ([`replacing`]).
-type Moved = (String, Arc<ModelData>, bool, Vec<&'static str>);
+/// A shape of an uncertain item.
+struct Moved {
+    name: String,
+    /// The model data with the item moved by one σ in this shape.
+    data: Arc<ModelData>,
+    /// Whether it is the item's stated shape.
+    stated: bool,
+    /// The effects that replace the item's value ([`replacing`]; a parameter group's).
+    replaced_by: Vec<&'static str>,
+}
 
 /// The shapes a map's error is taken in, each at one σ of the map: the stated one (a
 /// friction map shifted, the others scaled), a tilt across the map's first axis (the odd
@@ -98,12 +105,14 @@ impl Shape {
 /// cannot see.
 fn moved_data(base: &ModelData, u: &Uncertainty) -> Vec<Moved> {
     let mut out = Vec::new();
-    let mut with = |name: String, shape: Shape, f: &dyn Fn(&mut ModelData)| {
-        let mut d = base.clone();
-        f(&mut d);
-        let replaced_by = if shape == Shape::Stated { replacing(&name) } else { Vec::new() };
-        out.push((name, Arc::new(d), shape == Shape::Stated, replaced_by));
-    };
+    let mut moved =
+        |name: String, shape: Shape, replaced_by: Vec<&'static str>, f: &dyn Fn(&mut ModelData)| {
+            let mut d = base.clone();
+            f(&mut d);
+            out.push(Moved { name, data: Arc::new(d), stated: shape == Shape::Stated, replaced_by });
+        };
+    // A map's shapes: no effect replaces a map.
+    let mut with = |name: String, shape: Shape, f: &dyn Fn(&mut ModelData)| moved(name, shape, Vec::new(), f);
     for (i, side) in ["L", "R"].iter().enumerate() {
         let (sd, taper) = (u.friction_nm[i].value, u.friction_taper_rpm.value);
         for sh in Shape::ALL {
@@ -148,7 +157,7 @@ fn moved_data(base: &ModelData, u: &Uncertainty) -> Vec<Moved> {
     }
     for g in &u.params {
         let k = g.sigma_ln.exp();
-        with(g.keys.join("+"), Shape::Stated, &|d| {
+        moved(g.keys.join("+"), Shape::Stated, replacing(g.keys), &|d| {
             for line in &mut d.params {
                 if let ParamLine::Entry { key, value, .. } = line {
                     if g.keys.contains(&key.as_str()) {
@@ -161,14 +170,13 @@ fn moved_data(base: &ModelData, u: &Uncertainty) -> Vec<Moved> {
     out
 }
 
-/// The library effects with a parameter that replaces a value one of the `+`-joined
-/// `parameters.toml` keys of `item` sets (under either coupling stiffness: the one not in
-/// use moves nothing anyway). A refit of such an effect *is* a new identification of that
+/// The library effects with a parameter that replaces a value one of the
+/// `parameters.toml` `keys` sets (under either coupling stiffness: the one not in use
+/// moves nothing anyway). A refit of such an effect *is* a new identification of that
 /// value, so the value's stated uncertainty is no error of the refit: counting it held a
 /// connector resistance found at 0.0279 ± 0.0003 Ω (statistical) to ± 0.005 Ω, the
 /// stated σ of the 0.0196 Ω it replaces, and never significant.
-fn replacing(item: &str) -> Vec<&'static str> {
-    let keys: Vec<&str> = item.split('+').collect();
+fn replacing(keys: &[&str]) -> Vec<&'static str> {
     let moves = |f: fn(&Params) -> f32| {
         [CouplingStiffness::Identified, CouplingStiffness::Datasheet].into_iter().any(|c| {
             let p0 = Params::thesis(RateSet::Identified, c);
@@ -258,15 +266,15 @@ fn scale_interior(m: &mut Map1, rel: f64, shape: Shape) {
 pub(super) fn responses(twin: &dyn Twin, p: &Prepared, o: &Options) -> Items {
     let Some(base) = twin.data() else { return Items::default() };
     let (stated, others): (Vec<Moved>, Vec<Moved>) =
-        moved_data(&base, &Uncertainty::thesis()).into_iter().partition(|m| m.2);
+        moved_data(&base, &Uncertainty::thesis()).into_iter().partition(|m| m.stated);
     let stem = |name: &str| {
         [" tilt", " shift", " scale"].iter().find_map(|x| name.strip_suffix(x)).unwrap_or(name).to_owned()
     };
     // A map's shapes share its variance; a parameter group has one.
-    let maps: Vec<String> = others.iter().map(|m| stem(&m.0)).collect();
+    let maps: Vec<String> = others.iter().map(|m| stem(&m.name)).collect();
     let var = |name: &str| if maps.iter().any(|m| m == name) { 1.0 / 3.0 } else { 1.0 };
     let respond = |jobs: &[Moved]| -> Vec<Option<Vec<Vec<f64>>>> {
-        let runs = run_each(jobs, o, |(_, d, _, _)| twin.run_data(d, &o.base, p.stride));
+        let runs = run_each(jobs, o, |m| twin.run_data(&m.data, &o.base, p.stride));
         let diff = |out: Vec<Vec<f32>>| -> Vec<Vec<f64>> {
             let per_channel = out.iter().zip(&p.base_sim);
             per_channel
@@ -283,16 +291,22 @@ pub(super) fn responses(twin: &dyn Twin, p: &Prepared, o: &Options) -> Items {
         .iter()
         .zip(&first)
         .filter(|(_, j)| j.as_ref().is_some_and(|j| j.iter().flatten().any(|v| *v != 0.0)))
-        .map(|(m, _)| m.0.as_str())
+        .map(|(m, _)| m.name.as_str())
         .collect();
-    let others: Vec<Moved> = others.into_iter().filter(|m| reached.contains(&stem(&m.0).as_str())).collect();
+    let others: Vec<Moved> =
+        others.into_iter().filter(|m| reached.contains(&stem(&m.name).as_str())).collect();
     let second = respond(&others);
     let items = stated
         .iter()
         .zip(first)
         .chain(others.iter().zip(second))
         .filter_map(|(m, j)| {
-            Some(Item { j: j?, stated: m.2, var: var(&stem(&m.0)), replaced_by: m.3.clone() })
+            Some(Item {
+                j: j?,
+                stated: m.stated,
+                var: var(&stem(&m.name)),
+                replaced_by: m.replaced_by.clone(),
+            })
         })
         .collect();
     Items::new(&p.weights, items)
@@ -613,12 +627,12 @@ mod tests {
     /// replace a parameter, and a scaled inertia is not replaced by a scale.
     #[test]
     fn an_item_an_effect_replaces_moves_nothing_beside_it() {
-        assert_eq!(replacing("connector_resistance"), ["connector_resistance"]);
-        assert_eq!(replacing("coupling_damping"), ["coupling_damping"]);
-        assert_eq!(replacing("coupling_stiffness_identified"), ["coupling_stiffness"]);
-        assert_eq!(replacing("coupling_stiffness_datasheet"), ["coupling_stiffness"]);
+        assert_eq!(replacing(&["connector_resistance"]), ["connector_resistance"]);
+        assert_eq!(replacing(&["coupling_damping"]), ["coupling_damping"]);
+        assert_eq!(replacing(&["coupling_stiffness_identified"]), ["coupling_stiffness"]);
+        assert_eq!(replacing(&["coupling_stiffness_datasheet"]), ["coupling_stiffness"]);
         for key in ["sut_inertia", "load_inertia_l", "throttle_volts_per_pct"] {
-            assert!(replacing(key).is_empty(), "{key}: {:?}", replacing(key));
+            assert!(replacing(&[key]).is_empty(), "{key}: {:?}", replacing(&[key]));
         }
         let w = Weights::uniform(vec![1.0]);
         let ramp: Vec<f64> = (0..20).map(|t| t as f64 - 9.5).collect();
@@ -686,10 +700,10 @@ mod tests {
         let base = ModelData::builtin().expect("built-in data");
         let moved = moved_data(&base, &Uncertainty::thesis());
         assert!(moved.len() > 20, "{} items", moved.len());
-        for (name, d, _, _) in &moved {
-            assert!(**d != base, "{name} moved nothing");
+        for m in &moved {
+            assert!(*m.data != base, "{} moved nothing", m.name);
         }
-        let get = |n: &str| moved.iter().find(|m| m.0 == n).map(|m| m.1.clone()).expect(n);
+        let get = |n: &str| moved.iter().find(|m| m.name == n).map(|m| m.data.clone()).expect(n);
         for name in ["axle_friction_L", "axle_friction_L tilt", "axle_friction_L scale"] {
             let fl = &get(name).friction[0];
             for ((y, y0), x) in fl.y.iter().zip(&base.friction[0].y).zip(&fl.x) {
@@ -707,10 +721,10 @@ mod tests {
         }
         // Every map's stated shape has its tilt and its other shape, each a different
         // change; parameters have none.
-        let stated: Vec<&str> = moved.iter().filter(|m| m.2).map(|m| m.0.as_str()).collect();
-        let others: Vec<&Moved> = moved.iter().filter(|m| !m.2).collect();
+        let stated: Vec<&str> = moved.iter().filter(|m| m.stated).map(|m| m.name.as_str()).collect();
+        let others: Vec<&Moved> = moved.iter().filter(|m| !m.stated).collect();
         assert_eq!(others.len(), 24, "{stated:?}");
-        for (name, d, _, _) in others {
+        for Moved { name, data: d, .. } in others {
             let stem = [" tilt", " shift", " scale"].iter().find_map(|x| name.strip_suffix(x));
             let stem = stem.expect("a shape is named so");
             assert!(stated.contains(&stem), "{name} without its stated shape");
