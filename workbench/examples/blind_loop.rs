@@ -42,7 +42,10 @@
 //!   (coverage, [`stated_interval`]). Found and coverage are also printed apart for the
 //!   cases with the maps as identified and those with the maps perturbed: beside a wrong
 //!   map many effects are ones the maps' stated uncertainty could give, and an interval
-//!   holds that uncertainty, which only a perturbed map realises.
+//!   holds that uncertainty, which only a perturbed map realises. Beside perturbed maps,
+//!   found is split too by how large each effect is against the maps' error on the
+//!   channel it shows most on ([`against_maps`]: both noise-free plant runs): below 1x
+//!   the wrong maps outweigh it everywhere it acts.
 //!
 //! Seeds: the proof uses seeds from 1,000,000 on, never used while developing (tuning
 //! used 500,000 on); `--first` moves them. `--check` exits 1 when a target is missed
@@ -109,8 +112,9 @@ struct Outcome {
     false_on_table: Vec<String>,
     /// The same counting only the hidden effects as the truth (not the perturbation).
     false_claim_strict: Vec<String>,
-    /// Hidden library effects that move a channel of the run ([`excited_ids`]): (id, found).
-    library: Vec<(String, bool)>,
+    /// Hidden library effects that move a channel of the run ([`excited_ids`]): (id,
+    /// found, and beside perturbed maps its signal against theirs, [`against_maps`]).
+    library: Vec<(String, bool, Option<f64>)>,
     /// Coverage of the truth by the 95 % interval: (inside, total).
     coverage: (usize, usize),
     rounds: usize,
@@ -183,9 +187,8 @@ fn make_case(dir: &Path, seed: u64, replay: bool, sensor_noise: Option<&Path>) -
         } else {
             Scenario::draw(seed.wrapping_mul(7919).wrapping_add(k as u64))
         };
-        let mut nothing = strings(&["bench", "--profile", test.profile.name(), "--noise", "none", "-q"]);
-        nothing.extend(strings(&["--throttle-scale", &test.throttle_scale.to_string()]));
-        nothing.extend(strings(&["--load-scale", &test.load_scale.to_string(), "--out", &cl]));
+        let mut nothing = noise_free(&test);
+        nothing.extend(strings(&["--out", &cl]));
         let mut a = if k == 0 {
             strings(&["bench", "--scenario", "random", "--seed", &seed.to_string()])
         } else {
@@ -220,6 +223,56 @@ fn make_case(dir: &Path, seed: u64, replay: bool, sensor_noise: Option<&Path>) -
         clean.push(dir.join(cl));
     }
     Ok(Case { seed, scenario, runs, exact, clean, replay, sensor_noise: sensor_noise.map(Path::to_path_buf) })
+}
+
+/// `simrod bench` of `s`'s test (profile and scales), noise-free, nothing hidden yet.
+fn noise_free(s: &Scenario) -> Vec<String> {
+    let mut a = strings(&["bench", "--profile", s.profile.name(), "--noise", "none", "-q"]);
+    a.extend(strings(&["--throttle-scale", &s.throttle_scale.to_string()]));
+    a.extend(strings(&["--load-scale", &s.load_scale.to_string()]));
+    a
+}
+
+/// Beside perturbed maps: how large the scenario's `i`-th effect is against the maps'
+/// error, on the channel of `moves` where the ratio is largest — the RMS change of the
+/// effect alone over the RMS change of the maps' perturbation alone (each a noise-free
+/// plant run of the scenario's test against the nothing-hidden one, `clean0.csv`;
+/// written beside it as `alone0_ID.csv` and `maps0.csv`). Below 1, the wrong maps'
+/// error outweighs the effect on every channel it moves: a split of the found figure by
+/// it says how much of what is not found is that. Infinite where the maps move the
+/// channel not at all.
+fn against_maps(dir: &Path, c: &Case, i: usize, moves: &[String]) -> Result<f64, String> {
+    let (s, read) = (&c.scenario, |p: &Path| load(p, None).map_err(|e| e.to_string()));
+    let run = |name: String, extra: &[String]| -> Result<Measurement, String> {
+        if !dir.join(&name).is_file() {
+            let mut a = noise_free(s);
+            a.extend_from_slice(extra);
+            a.extend(strings(&["--out", &name]));
+            simrod(dir, &a)?;
+        }
+        read(&dir.join(name))
+    };
+    let maps =
+        run("maps0.csv".into(), &strings(&["--perturb-maps", &s.perturb_maps.unwrap_or(0).to_string()]))?;
+    let id = s.picks.get(i).map(Pick::id).ok_or("no such pick")?;
+    let fx = format!("alone0_{id}.toml");
+    std::fs::write(dir.join(&fx), format_bench_effects(&s.effect_alone(i))?).map_err(|e| e.to_string())?;
+    let alone = run(format!("alone0_{id}.csv"), &strings(&["--effects", &fx]))?;
+    let clean = read(c.clean.first().ok_or("no clean run")?)?;
+    let ratio = |ch: &String| -> Option<f64> {
+        let z = &clean.signal(ch)?.values;
+        let (e, m) = (rms_diff(&alone.signal(ch)?.values, z), rms_diff(&maps.signal(ch)?.values, z));
+        Some(if m > 0.0 { e / m } else { f64::INFINITY })
+    };
+    Ok(moves.iter().filter_map(ratio).fold(0.0, f64::max))
+}
+
+/// The channels the truth file says effect `id` moves.
+fn moves_of(truth: &toml::Value, id: &str) -> Vec<String> {
+    let effects = truth.get("effect").and_then(|e| e.as_array()).map_or(&[][..], |a| a.as_slice());
+    let e = effects.iter().find(|e| e.get("id").and_then(|i| i.as_str()) == Some(id));
+    let moves = e.and_then(|e| e.get("moves")?.as_array().cloned()).unwrap_or_default();
+    moves.iter().filter_map(|m| m.as_str().map(str::to_owned)).collect()
 }
 
 /// What the loop has added so far: the last effect file and the last model data
@@ -519,29 +572,30 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
     let mut coverage = (0, 0);
     let mut missed = Vec::new();
     let excited = excited_ids(&truth_toml);
-    let library: Vec<(String, bool)> = c
-        .scenario
-        .picks
-        .iter()
-        .filter_map(|p| match p {
-            Pick::Library { id, param, value } if excited.contains(*id) => Some((id, param, value)),
-            _ => None,
-        })
-        .map(|(id, param, value)| {
-            let found = claimed.contains(*id);
-            if !found {
-                missed.push(format!("{id} not found"));
-            } else if let Some((lo, hi)) = stated_interval(rounds, id, param) {
-                let inside = lo <= *value && *value <= hi;
-                coverage.0 += usize::from(inside);
-                coverage.1 += 1;
-                if !inside {
-                    missed.push(format!("{id}.{param} = {value:.4} outside [{lo:.4}, {hi:.4}]"));
-                }
+    let mut library = Vec::new();
+    for (i, p) in c.scenario.picks.iter().enumerate() {
+        let Pick::Library { id, param, value } = p else { continue };
+        if !excited.contains(*id) {
+            continue;
+        }
+        let found = claimed.contains(*id);
+        let beside = match c.scenario.perturb_maps {
+            Some(_) => Some(against_maps(dir, c, i, &moves_of(&truth_toml, id))?),
+            None => None,
+        };
+        if !found {
+            let against = beside.map(|r| format!(" ({r:.2}x the maps' error)")).unwrap_or_default();
+            missed.push(format!("{id} not found{against}"));
+        } else if let Some((lo, hi)) = stated_interval(rounds, id, param) {
+            let inside = lo <= *value && *value <= hi;
+            coverage.0 += usize::from(inside);
+            coverage.1 += 1;
+            if !inside {
+                missed.push(format!("{id}.{param} = {value:.4} outside [{lo:.4}, {hi:.4}]"));
             }
-            (id.to_string(), found)
-        })
-        .collect();
+        }
+        library.push((id.to_string(), found, beside));
+    }
     Ok(Outcome {
         class: class_of(c),
         maps: c.scenario.perturb_maps.is_some(),
@@ -738,9 +792,9 @@ fn summary(o: &[Outcome]) -> bool {
     let honest = count(&|x| x.honest);
     let false_claims = count(&|x| !x.false_claim.is_empty());
     let lib_where = |camp: bool, maps: &dyn Fn(bool) -> bool| {
-        let all: Vec<&(String, bool)> =
+        let all: Vec<&(String, bool, Option<f64>)> =
             o.iter().filter(|x| x.campaign == camp && maps(x.maps)).flat_map(|x| &x.library).collect();
-        (all.iter().filter(|(_, f)| *f).count(), all.len())
+        (all.iter().filter(|(_, f, _)| *f).count(), all.len())
     };
     let lib = |camp: bool| lib_where(camp, &|_| true);
     let (fs, ns) = lib(false);
@@ -769,6 +823,21 @@ fn summary(o: &[Outcome]) -> bool {
         let (fp, np) = lib_where(camp, &|m| m);
         println!("  {what}: maps as identified {}, maps perturbed {}", pct(fi, ni), pct(fp, np));
     }
+    let by_ratio = |lo: f64, hi: f64| {
+        let all: Vec<bool> = o
+            .iter()
+            .flat_map(|x| &x.library)
+            .filter(|(_, _, r)| r.is_some_and(|r| lo <= r && (r < hi || hi == f64::INFINITY)))
+            .map(|(_, f, _)| *f)
+            .collect();
+        pct(all.iter().filter(|f| **f).count(), all.len())
+    };
+    println!(
+        "  beside perturbed maps, by the effect's own signal against the maps' error on its best channel: below 1x {}, 1-3x {}, 3x and more {}",
+        by_ratio(0.0, 1.0),
+        by_ratio(1.0, 3.0),
+        by_ratio(3.0, f64::INFINITY)
+    );
     println!("nothing hidden, nothing claimed: {}  (target >= 98 %)", pct(quiet, hidden_none));
     println!("95 % intervals covering the truth: {}  (target 90-99 %)", pct(cin, ctot));
     // An interval holds the data's stated uncertainty, which only a perturbed map

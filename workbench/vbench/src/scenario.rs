@@ -145,6 +145,16 @@ impl Scenario {
         fx
     }
 
+    /// The `i`-th drawn effect alone (for its own signal, against that of the maps'
+    /// perturbation).
+    pub fn effect_alone(&self, i: usize) -> BenchEffects {
+        let mut fx = BenchEffects::none();
+        if let Some(p) = self.picks.get(i) {
+            p.apply(&mut fx);
+        }
+        fx
+    }
+
     /// All drawn effects but the `i`-th (for what that one moves).
     pub fn effects_without(&self, i: usize) -> BenchEffects {
         let mut fx = BenchEffects::none();
@@ -328,6 +338,23 @@ mod tests {
                 assert!(text.contains(&format!("perturb_maps = {p}")), "{text}");
             }
         }
+    }
+
+    /// Each pick alone is one part of the whole: alone it differs from no effect, and
+    /// with every other pick's part it makes up `effects()` (each pick sets its own
+    /// parameters only).
+    #[test]
+    fn a_pick_alone_is_its_part_of_the_whole() {
+        let s = (0..50).map(Scenario::draw).find(|s| s.picks.len() == 3).unwrap();
+        for i in 0..3 {
+            let alone = s.effect_alone(i);
+            assert_ne!(alone, BenchEffects::none(), "pick {i} alone sets something");
+            assert_ne!(alone, s.effects(), "pick {i} alone is not all three");
+            let mut all = s.effects_without(i);
+            s.picks[i].apply(&mut all);
+            assert_eq!(all, s.effects(), "pick {i} and the others make the whole");
+        }
+        assert_eq!(s.effect_alone(3), BenchEffects::none(), "no fourth pick");
     }
 
     #[test]
