@@ -240,7 +240,7 @@ fn noise_free(s: &Scenario) -> Vec<String> {
 /// written beside it as `alone0_ID.csv` and `maps0.csv`). Below 1, the wrong maps'
 /// error outweighs the effect on every channel it moves: a split of the found figure by
 /// it says how much of what is not found is that. Infinite where the maps move the
-/// channel not at all.
+/// channel not at all and the effect does; 0 where the effect moves none of them.
 fn against_maps(dir: &Path, c: &Case, i: usize, moves: &[String]) -> Result<f64, String> {
     let (s, read) = (&c.scenario, |p: &Path| load(p, None).map_err(|e| e.to_string()));
     let run = |name: String, extra: &[String]| -> Result<Measurement, String> {
@@ -262,7 +262,8 @@ fn against_maps(dir: &Path, c: &Case, i: usize, moves: &[String]) -> Result<f64,
     let ratio = |ch: &String| -> Option<f64> {
         let z = &clean.signal(ch)?.values;
         let (e, m) = (rms_diff(&alone.signal(ch)?.values, z), rms_diff(&maps.signal(ch)?.values, z));
-        Some(if m > 0.0 { e / m } else { f64::INFINITY })
+        // A channel neither moves (V_DC_busbars without a supply resistance) says nothing.
+        (e > 0.0).then(|| if m > 0.0 { e / m } else { f64::INFINITY })
     };
     Ok(moves.iter().filter_map(ratio).fold(0.0, f64::max))
 }
