@@ -44,7 +44,7 @@
 //!   map many effects are ones the maps' stated uncertainty could give, and an interval
 //!   holds that uncertainty, which only a perturbed map realises. Beside perturbed maps,
 //!   found is split too by how large each effect is against the maps' error on the
-//!   channel it shows most on ([`against_maps`]: both noise-free plant runs): below 1x
+//!   channel it shows most on ([`MapsError::ratio`]: both noise-free plant runs): below 1x
 //!   the wrong maps outweigh it everywhere it acts.
 //!
 //! Seeds: the proof uses seeds from 1,000,000 on, never used while developing (tuning
@@ -112,9 +112,8 @@ struct Outcome {
     false_on_table: Vec<String>,
     /// The same counting only the hidden effects as the truth (not the perturbation).
     false_claim_strict: Vec<String>,
-    /// Hidden library effects that move a channel of the run ([`excited_ids`]): (id,
-    /// found, and beside perturbed maps its signal against theirs, [`against_maps`]).
-    library: Vec<(String, bool, Option<f64>)>,
+    /// Hidden library effects that move a channel of the run ([`excited_ids`]).
+    library: Vec<Library>,
     /// Coverage of the truth by the 95 % interval: (inside, total).
     coverage: (usize, usize),
     rounds: usize,
@@ -126,6 +125,13 @@ struct Outcome {
     why: Vec<String>,
     /// Hidden library effects not found, and stated intervals that miss the truth.
     missed: Vec<String>,
+}
+
+/// A hidden library effect that moves a channel of the scenario's run.
+struct Library {
+    found: bool,
+    /// Beside perturbed maps: its signal against theirs ([`MapsError::ratio`]).
+    against_maps: Option<f64>,
 }
 
 /// The sweep's flags, parsed once (an unknown flag or a bad value is an error, not a
@@ -233,39 +239,60 @@ fn noise_free(s: &Scenario) -> Vec<String> {
     a
 }
 
-/// Beside perturbed maps: how large the scenario's `i`-th effect is against the maps'
-/// error, on the channel of `moves` where the ratio is largest — the RMS change of the
-/// effect alone over the RMS change of the maps' perturbation alone (each a noise-free
-/// plant run of the scenario's test against the nothing-hidden one, `clean0.csv`;
-/// written beside it as `alone0_ID.csv` and `maps0.csv`). Below 1, the wrong maps'
-/// error outweighs the effect on every channel it moves: a split of the found figure by
-/// it says how much of what is not found is that. Infinite where the maps move the
-/// channel not at all and the effect does; 0 where the effect moves none of them.
-fn against_maps(dir: &Path, c: &Case, i: usize, moves: &[String]) -> Result<f64, String> {
-    let (s, read) = (&c.scenario, |p: &Path| load(p, None).map_err(|e| e.to_string()));
-    let run = |name: String, extra: &[String]| -> Result<Measurement, String> {
-        if !dir.join(&name).is_file() {
-            let mut a = noise_free(s);
-            a.extend_from_slice(extra);
-            a.extend(strings(&["--out", &name]));
-            simrod(dir, &a)?;
+/// Beside perturbed maps: the noise-free plant runs of the scenario's test with nothing
+/// hidden (`clean0.csv`) and with the maps' perturbation alone (`maps0.csv`, run once per
+/// case), against which each hidden effect's own signal is measured ([`Self::ratio`]).
+struct MapsError {
+    clean: Measurement,
+    maps: Measurement,
+}
+
+/// A plant run of `s`'s test, noise-free, with `extra` flags, into `dir/name` (kept: run
+/// only when missing, as in `--replay`).
+fn plant_run(dir: &Path, s: &Scenario, name: &str, extra: &[String]) -> Result<Measurement, String> {
+    if !dir.join(name).is_file() {
+        let mut a = noise_free(s);
+        a.extend_from_slice(extra);
+        a.extend(strings(&["--out", name]));
+        simrod(dir, &a)?;
+    }
+    load(&dir.join(name), None).map_err(|e| e.to_string())
+}
+
+impl MapsError {
+    /// `None` when the case's maps are as identified.
+    fn of(dir: &Path, c: &Case) -> Result<Option<Self>, String> {
+        let Some(seed) = c.scenario.perturb_maps else { return Ok(None) };
+        let maps =
+            plant_run(dir, &c.scenario, "maps0.csv", &strings(&["--perturb-maps", &seed.to_string()]))?;
+        let clean = load(c.clean.first().ok_or("no clean run")?, None).map_err(|e| e.to_string())?;
+        Ok(Some(Self { clean, maps }))
+    }
+
+    /// How large the scenario's `i`-th effect is against the maps' error, on the channel
+    /// of `moves` where the ratio is largest: the RMS change of the effect alone
+    /// (`alone0_ID.csv`) over the RMS change of the maps' perturbation alone, each
+    /// against the nothing-hidden run. Below 1, the wrong maps' error outweighs the
+    /// effect on every channel it moves: a split of the found figure by it says how much
+    /// of what is not found is that. Infinite where the maps move the channel not at all
+    /// and the effect does; 0 where the effect moves none of them.
+    fn ratio(&self, dir: &Path, s: &Scenario, i: usize, moves: &[String]) -> Result<f64, String> {
+        let id = s.picks.get(i).map(Pick::id).ok_or("no such pick")?;
+        let (fx, out) = (format!("alone0_{id}.toml"), format!("alone0_{id}.csv"));
+        if !dir.join(&out).is_file() {
+            std::fs::write(dir.join(&fx), format_bench_effects(&s.effect_alone(i))?)
+                .map_err(|e| e.to_string())?;
         }
-        read(&dir.join(name))
-    };
-    let maps =
-        run("maps0.csv".into(), &strings(&["--perturb-maps", &s.perturb_maps.unwrap_or(0).to_string()]))?;
-    let id = s.picks.get(i).map(Pick::id).ok_or("no such pick")?;
-    let fx = format!("alone0_{id}.toml");
-    std::fs::write(dir.join(&fx), format_bench_effects(&s.effect_alone(i))?).map_err(|e| e.to_string())?;
-    let alone = run(format!("alone0_{id}.csv"), &strings(&["--effects", &fx]))?;
-    let clean = read(c.clean.first().ok_or("no clean run")?)?;
-    let ratio = |ch: &String| -> Option<f64> {
-        let z = &clean.signal(ch)?.values;
-        let (e, m) = (rms_diff(&alone.signal(ch)?.values, z), rms_diff(&maps.signal(ch)?.values, z));
-        // A channel neither moves (V_DC_busbars without a supply resistance) says nothing.
-        (e > 0.0).then(|| if m > 0.0 { e / m } else { f64::INFINITY })
-    };
-    Ok(moves.iter().filter_map(ratio).fold(0.0, f64::max))
+        let alone = plant_run(dir, s, &out, &strings(&["--effects", &fx]))?;
+        let ratio = |ch: &String| -> Option<f64> {
+            let z = &self.clean.signal(ch)?.values;
+            let e = rms_diff(&alone.signal(ch)?.values, z);
+            let m = rms_diff(&self.maps.signal(ch)?.values, z);
+            // A channel neither moves (V_DC_busbars without a supply resistance) says nothing.
+            (e > 0.0).then(|| if m > 0.0 { e / m } else { f64::INFINITY })
+        };
+        Ok(moves.iter().filter_map(ratio).fold(0.0, f64::max))
+    }
 }
 
 /// The channels the truth file says effect `id` moves.
@@ -573,6 +600,7 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
     let mut coverage = (0, 0);
     let mut missed = Vec::new();
     let excited = excited_ids(&truth_toml);
+    let maps_error = MapsError::of(dir, c)?;
     let mut library = Vec::new();
     for (i, p) in c.scenario.picks.iter().enumerate() {
         let Pick::Library { id, param, value } = p else { continue };
@@ -580,8 +608,8 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
             continue;
         }
         let found = claimed.contains(*id);
-        let beside = match c.scenario.perturb_maps {
-            Some(_) => Some(against_maps(dir, c, i, &moves_of(&truth_toml, id))?),
+        let beside = match &maps_error {
+            Some(m) => Some(m.ratio(dir, &c.scenario, i, &moves_of(&truth_toml, id))?),
             None => None,
         };
         if !found {
@@ -595,7 +623,7 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
                 missed.push(format!("{id}.{param} = {value:.4} outside [{lo:.4}, {hi:.4}]"));
             }
         }
-        library.push((id.to_string(), found, beside));
+        library.push(Library { found, against_maps: beside });
     }
     Ok(Outcome {
         class: class_of(c),
@@ -793,9 +821,9 @@ fn summary(o: &[Outcome]) -> bool {
     let honest = count(&|x| x.honest);
     let false_claims = count(&|x| !x.false_claim.is_empty());
     let lib_where = |camp: bool, maps: &dyn Fn(bool) -> bool| {
-        let all: Vec<&(String, bool, Option<f64>)> =
+        let all: Vec<&Library> =
             o.iter().filter(|x| x.campaign == camp && maps(x.maps)).flat_map(|x| &x.library).collect();
-        (all.iter().filter(|(_, f, _)| *f).count(), all.len())
+        (all.iter().filter(|l| l.found).count(), all.len())
     };
     let lib = |camp: bool| lib_where(camp, &|_| true);
     let (fs, ns) = lib(false);
@@ -824,20 +852,16 @@ fn summary(o: &[Outcome]) -> bool {
         let (fp, np) = lib_where(camp, &|m| m);
         println!("  {what}: maps as identified {}, maps perturbed {}", pct(fi, ni), pct(fp, np));
     }
-    let by_ratio = |lo: f64, hi: f64| {
-        let all: Vec<bool> = o
-            .iter()
-            .flat_map(|x| &x.library)
-            .filter(|(_, _, r)| r.is_some_and(|r| lo <= r && (r < hi || hi == f64::INFINITY)))
-            .map(|(_, f, _)| *f)
-            .collect();
-        pct(all.iter().filter(|f| **f).count(), all.len())
+    let by_ratio = |bin: &dyn Fn(f64) -> bool| {
+        let all: Vec<&Library> =
+            o.iter().flat_map(|x| &x.library).filter(|l| l.against_maps.is_some_and(bin)).collect();
+        pct(all.iter().filter(|l| l.found).count(), all.len())
     };
     println!(
         "  beside perturbed maps, by the effect's own signal against the maps' error on its best channel: below 1x {}, 1-3x {}, 3x and more {}",
-        by_ratio(0.0, 1.0),
-        by_ratio(1.0, 3.0),
-        by_ratio(3.0, f64::INFINITY)
+        by_ratio(&|r| r < 1.0),
+        by_ratio(&|r| (1.0..3.0).contains(&r)),
+        by_ratio(&|r| r >= 3.0)
     );
     println!("nothing hidden, nothing claimed: {}  (target >= 98 %)", pct(quiet, hidden_none));
     println!("95 % intervals covering the truth: {}  (target 90-99 %)", pct(cin, ctot));
