@@ -360,6 +360,23 @@ macro_rules! effects {
                 Err(EffectKeyError::UnknownEffect)
             }
 
+            /// Put one parameter back to its value in [`Effects::NONE`] (an override is
+            /// unset, not set to the model's value), so an effect file no longer states it.
+            pub fn reset(&mut self, effect: &str, param: &str) -> Result<(), EffectKeyError> {
+                $(
+                    if effect == stringify!($id) {
+                        $(
+                            if param == stringify!($param) {
+                                self.$field $($acc)* = Self::NONE.$field $($acc)*;
+                                return Ok(());
+                            }
+                        )+
+                        return Err(EffectKeyError::UnknownParameter(&[$(stringify!($param)),+]));
+                    }
+                )+
+                Err(EffectKeyError::UnknownEffect)
+            }
+
             /// One parameter's value; `None` for an override that is not set (the
             /// model's own value applies).
             pub fn get(&self, effect: &str, param: &str) -> Result<Option<f32>, EffectKeyError> {
@@ -908,5 +925,27 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A reset puts back exactly the one parameter it names, overrides included (unset,
+    /// not set to the model's value), and refuses names the library does not have.
+    #[test]
+    fn a_reset_undoes_one_parameter_and_only_it() {
+        for e in EFFECTS {
+            for p in e.params {
+                let mut fx = Effects::NONE;
+                for q in e.params {
+                    assert_eq!(fx.set(e.id, q.name, q.range.max), Ok(()));
+                }
+                assert_eq!(fx.reset(e.id, p.name), Ok(()));
+                assert_eq!(fx.get(e.id, p.name), Effects::NONE.get(e.id, p.name), "{}.{}", e.id, p.name);
+                for q in e.params.iter().filter(|q| q.name != p.name) {
+                    assert_eq!(fx.get(e.id, q.name), Ok(Some(q.range.max)), "{}.{} kept", e.id, q.name);
+                }
+            }
+        }
+        let mut fx = Effects::NONE;
+        assert_eq!(fx.reset("no_such_effect", "x"), Err(EffectKeyError::UnknownEffect));
+        assert!(matches!(fx.reset("coupling_damping", "x"), Err(EffectKeyError::UnknownParameter(_))));
     }
 }

@@ -662,7 +662,9 @@ fn kind_name(k: &VerdictKind) -> &'static str {
 /// it, whose new values are written with it), "channels": [...]}], "selected", "stated":
 /// [{"effect", "params", "uncertainty", "uncertainty_data", "ci95", "units"}] (what the verdict names, with
 /// the values it proposes: a set's joint refit, not its members' own in the ranking, then
-/// the effects already in the model refitted beside the lead), "confounded",
+/// the effects already in the model refitted beside the lead), "taken_out": [effect] (the
+/// effects already in the model the proposal takes out: the named set's joint refit
+/// returned them to the thesis model), "confounded",
 /// "unexplained", "noise": {channel: σ},
 /// "proposed_effects": TOML text or null, "setup", "timing_s"}`. NaN becomes null.
 pub fn to_json(d: &Diagnosed) -> Value {
@@ -719,6 +721,7 @@ pub fn to_json(d: &Diagnosed) -> Value {
         "ranking": ranking,
         "selected": g.selected.iter().map(|(e, r)| json!({"effect": e, "incremental_reduction": r})).collect::<Vec<_>>(),
         "stated": g.stated.iter().map(stated).collect::<Vec<_>>(),
+        "taken_out": g.taken_out,
         "confounded": g.confounded,
         "unexplained": g.unexplained,
         "noise": obj(g.noise.iter().map(|(n, v)| (n.to_string(), json!(v))).collect()),

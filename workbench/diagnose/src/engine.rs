@@ -423,6 +423,9 @@ pub struct Diagnosis {
     pub selected: Vec<(&'static str, f64)>,
     /// The effects the verdict names, with the values it proposes ([`Stated`]).
     pub stated: Vec<Stated>,
+    /// Effects already in the model that the proposal takes out: the named set's joint
+    /// refit returned them to the thesis model ([`SetFit::returned`]).
+    pub taken_out: Vec<&'static str>,
     /// Confounded groups among the leaders.
     pub confounded: Vec<ConfoundedGroup>,
     /// Where the unexplained residual is (for partial or unexplained verdicts).
@@ -542,6 +545,7 @@ fn stages(
     let (v, empirical) = tables(twin, &ev, conclude(&ev));
     selected.retain(|(e, _)| v.named.contains(e));
     let stated = stated(&ev, &v);
+    let taken_out = ev.set.filter(|s| s.effects == v.named).map(|s| s.removed.clone()).unwrap_or_default();
     let sentence = match empirical.as_ref() {
         Some(e) if e.refused.is_none() => format!("{}; {}", v.sentence, e.offer()),
         _ => v.sentence,
@@ -555,6 +559,7 @@ fn stages(
         ranking: ranking.into_iter().zip(refused).map(|(c, refused)| Candidate { refused, ..c }).collect(),
         selected,
         stated,
+        taken_out,
         confounded,
         unexplained: v.unexplained,
         proposed: v.proposed,
@@ -683,6 +688,11 @@ pub(super) struct SetFit {
     pub starts: Vec<f64>,
     /// A member's parameter that drifts over the run ([`Candidate::drift`]).
     pub drift: Option<Drift>,
+    /// Effects the model held that the joint refit returned to the thesis model
+    /// ([`SetFit::returned`]): taken out, and the members refitted without them.
+    pub removed: Vec<&'static str>,
+    /// The effects the members' values are applied to: the model's, less `removed`.
+    pub base: Effects,
 }
 
 /// The selected set (when it has two or more effects) refitted jointly, from the joint
@@ -706,7 +716,7 @@ fn joint_fit(
     let fit = refit(twin, p, o, &sp, &start)?;
     let starts: Vec<f64> = ix.iter().map(|&i| s.starts[i]).collect();
     let Spread { std, reported, data, drift } = parameter_std(p, &fit, &sp, &starts, twin.dt_s());
-    Some(SetFit {
+    let set = SetFit {
         effects: groups.iter().map(|&g| s.groups[g].0).collect(),
         specs: sp.into_iter().cloned().collect(),
         fit,
@@ -715,7 +725,46 @@ fn joint_fit(
         data,
         starts,
         drift,
-    })
+        removed: Vec::new(),
+        base: o.base,
+    };
+    Some(take_out_returned(twin, p, o, set))
+}
+
+/// `set` without the members already in the model that its joint refit returns to the
+/// thesis model ([`SetFit::returned`]), the others refitted on the model without them.
+/// An effect an earlier round wrote for what a later one explains otherwise (a coupling
+/// damping and an inertia scale standing in for a coupling stiffness found later) is
+/// otherwise restated at a value its own interval says is no effect at all. `set` as it
+/// is when no member returns, when none would be left, or when the refit fails.
+fn take_out_returned(twin: &dyn Twin, p: &Prepared, o: &Options, set: SetFit) -> SetFit {
+    let gone = set.returned();
+    if gone.is_empty() || gone.len() == set.effects.len() {
+        return set;
+    }
+    let mut base = o.base;
+    for sp in set.specs.iter().filter(|sp| gone.contains(&sp.cause)) {
+        // Every spec comes from the declarations, so `reset` cannot refuse it.
+        let _ = base.reset(sp.effect, sp.param);
+    }
+    let keep: Vec<usize> = (0..set.specs.len()).filter(|&k| !gone.contains(&set.specs[k].cause)).collect();
+    let sp: Vec<&ParamSpec> = keep.iter().map(|&k| &set.specs[k]).collect();
+    let start: Vec<f64> = keep.iter().map(|&k| set.fit.values[k]).collect();
+    let Some(fit) = refit(twin, p, &Options { base, ..o.clone() }, &sp, &start) else { return set };
+    let starts: Vec<f64> = keep.iter().map(|&k| set.starts[k]).collect();
+    let Spread { std, reported, data, drift } = parameter_std(p, &fit, &sp, &starts, twin.dt_s());
+    SetFit {
+        effects: set.effects.iter().copied().filter(|e| !gone.contains(e)).collect(),
+        specs: sp.into_iter().cloned().collect(),
+        fit,
+        std,
+        reported,
+        data,
+        starts,
+        drift,
+        removed: gone,
+        base,
+    }
 }
 
 impl SetFit {
@@ -727,6 +776,30 @@ impl SetFit {
             .iter()
             .zip(self.fit.values.iter().zip(self.std.iter().zip(&self.starts)))
             .any(|(sp, (v, (sd, s0)))| sp.cause == effect && super::refit::moved(*v, *s0, *sd, sp))
+    }
+
+    /// The members already in the model (some parameter started off its neutral value)
+    /// that the joint refit returns to the thesis model: every parameter's reported 95 %
+    /// interval holds its neutral value, and some parameter's excludes the value the
+    /// model had. A member whose intervals still hold the model's values is not moved
+    /// back by the data (a delay the run cannot determine) and stays.
+    pub fn returned(&self) -> Vec<&'static str> {
+        let mut out: Vec<&'static str> = Vec::new();
+        for &e in &self.effects {
+            let params =
+                self.specs.iter().zip(self.fit.values.iter().zip(self.reported.iter().zip(&self.starts)));
+            let (mut held, mut holds, mut excludes) = (false, true, false);
+            for (sp, (&v, (&sd, &s0))) in params.filter(|(sp, _)| sp.cause == e) {
+                let (lo, hi) = FittedParam::refitted(sp, v, (sd, 0.0), s0).ci95;
+                held |= (s0 - sp.neutral).abs() > 1e-6 * sp.delta;
+                holds &= lo <= sp.neutral && sp.neutral <= hi;
+                excludes |= s0 < lo || s0 > hi;
+            }
+            if held && holds && excludes {
+                out.push(e);
+            }
+        }
+        out
     }
 }
 
@@ -827,9 +900,68 @@ mod tests {
             data: vec![0.0; 3],
             starts: vec![0.010, 0.0, 0.0],
             drift: None,
+            removed: Vec::new(),
+            base: Effects::NONE,
         };
         assert!(set.supports("supply_resistance"));
         assert!(!set.supports("regen_efficiency"));
         assert!(!set.supports("controller_delay"));
+    }
+
+    /// A member is returned to the thesis model only when it was in the model, every
+    /// interval of the refit holds its neutral value and one excludes the model's value:
+    /// not a new member, not one the refit leaves undetermined or still holding the
+    /// model's value, not one moved elsewhere.
+    #[test]
+    fn only_held_members_refitted_back_to_neutral_are_returned() {
+        let lib = super::super::library::library(&Params::default());
+        let specs = |e: &str| lib.iter().filter(|s| s.effect == e).cloned().collect::<Vec<_>>();
+        // Per member, (start, value, reported σ) of each parameter, in library order.
+        type Member = (&'static str, &'static [(f64, f64, f64)]);
+        let members: [Member; 6] = [
+            // Inertia held at 1.43/0.67/0.76, refitted to 1.05/0.96/0.97 ± 0.09: returned.
+            ("inertia_scale", &[(1.43, 1.05, 0.09), (0.67, 0.96, 0.09), (0.76, 0.97, 0.09)]),
+            // Damping held at 25, refitted to 3.9 ± 1.3 (thesis 3.65): returned.
+            ("coupling_damping", &[(25.0, 3.9, 1.3)]),
+            // A delay the run cannot determine (σ undetermined): stays.
+            ("controller_delay", &[(0.03, 0.02, f64::INFINITY)]),
+            // New (it starts neutral): not returned, whatever its interval.
+            ("supply_resistance", &[(0.0, 0.001, 0.01)]),
+            // Its interval holds both the thesis value and the model's: stays.
+            ("axle_friction_scale", &[(1.1, 1.05, 0.05), (1.0, 1.0, 0.05)]),
+            // Moved, but away from neutral: stays.
+            ("differential_friction", &[(3.0, 6.0, 0.5), (0.0, 0.0, 0.01)]),
+        ];
+        let (mut sp, mut starts, mut values, mut sd) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for (e, ps) in members {
+            let own = specs(e);
+            assert_eq!(own.len(), ps.len(), "{e}'s parameters");
+            for (s, &(s0, v, d)) in own.into_iter().zip(ps) {
+                sp.push(s);
+                starts.push(s0);
+                values.push(v);
+                sd.push(d);
+            }
+        }
+        let set = SetFit {
+            effects: members.iter().map(|(e, _)| *e).collect(),
+            specs: sp,
+            fit: Fit {
+                values,
+                sim: Vec::new(),
+                jac: Vec::new(),
+                energy: 0.0,
+                profile: Vec::new(),
+                held: None,
+            },
+            std: sd.clone(),
+            reported: sd,
+            data: vec![0.0; starts.len()],
+            starts,
+            drift: None,
+            removed: Vec::new(),
+            base: Effects::NONE,
+        };
+        assert_eq!(set.returned(), vec!["inertia_scale", "coupling_damping"]);
     }
 }

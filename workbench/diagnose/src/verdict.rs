@@ -436,7 +436,11 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     let (p, o) = (ev.p, ev.o);
     let single = ev.ranking.iter().find(|c| ev.counts(c)).and_then(|l| ev.after(l.effect));
     let single_energy = single.map_or(p.e0, |f| f.energy);
-    if single_energy - set.fit.energy < o.min_reduction_of_noise * p.e_noise {
+    // A set that takes effects out is proposed for being simpler: it must not leave
+    // materially more than the best single effect (which restates them).
+    let material = o.min_reduction_of_noise * p.e_noise;
+    let gain = single_energy - set.fit.energy;
+    if (set.removed.is_empty() && gain < material) || gain < -material {
         return None;
     }
     // A sensor member that leaves its channel above the noise only absorbs error there.
@@ -456,19 +460,24 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     let ratio_after = set.fit.energy / p.e_noise;
     let removed = (p.e0 - set.fit.energy) / p.excess;
     let names = describe_set(set, ev.cands);
+    let (effects, together, they, act) = if set.effects.len() > 1 {
+        ("effects", "together ", "they", "act")
+    } else {
+        ("effect", "", "it", "acts")
+    };
     let explains = red_a >= o.explain_fraction && after_a <= o.noise_like_ratio;
     let left = ev.structure_left(&set.fit.sim);
     let (kind, sentence, unexplained) = if explains && ratio_after <= o.noise_like_ratio && left.is_none() {
         let text = format!(
-            "missing effects: {names}, together removing {:.0} % of the error above noise on the channels they act on and leaving a noise-like residual",
+            "missing {effects}: {names}, {together}removing {:.0} % of the error above noise on the channels {they} {act} on and leaving a noise-like residual",
             100.0 * red_a
         );
         (VerdictKind::Missing, text, None)
     } else if let (true, Some(st)) = (explains, &left) {
         let text = format!(
-            "missing effects: {names}, together removing {:.0} % of the error above noise on the channels they act on; {}",
+            "missing {effects}: {names}, {together}removing {:.0} % of the error above noise on the channels {they} {act} on; {}",
             100.0 * red_a,
-            st.left("they")
+            st.left(they)
         );
         (VerdictKind::Partial, text, Some(st.location()))
     } else if removed < o.unexplained_fraction {
@@ -477,7 +486,7 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     } else {
         let loc = ev.locate_rest(&set.fit.sim);
         let text = format!(
-            "partly explained: {names} together remove {:.0} % of the error above noise on the channels they act on; what remains is {:.1}x the noise: {}",
+            "partly explained: {names}, {together}removing {:.0} % of the error above noise on the channels {they} {act} on; what remains is {:.1}x the noise: {}",
             100.0 * red_a,
             ratio_after,
             place(&loc)
@@ -487,10 +496,10 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     let specs: Vec<&ParamSpec> = set.specs.iter().collect();
     Some(Verdict {
         kind,
-        sentence,
+        sentence: format!("{sentence}{}", taken_out(set)),
         lead: set.effects.first().copied(),
         unexplained,
-        proposed: with_values(&o.base, &specs, &set.fit.values),
+        proposed: with_values(&set.base, &specs, &set.fit.values),
         named: set.effects.clone(),
         removed,
     })
@@ -531,6 +540,18 @@ fn alias_refusal(c: &Candidate, a: &MapAlias) -> String {
         "{what} removes {:.0} % as much: a wrong map and a miscalibrated sensor look alike on {}",
         100.0 * a.share,
         c.moves.first().copied().unwrap_or("its channel")
+    )
+}
+
+/// `; taking out C and D, …`: the effects already in the model that `set`'s joint refit
+/// returned to the thesis model ([`SetFit::returned`]), or nothing.
+fn taken_out(set: &SetFit) -> String {
+    if set.removed.is_empty() {
+        return String::new();
+    }
+    format!(
+        "; taking out {}, which the joint refit returns to the thesis model (every 95 % interval holds its neutral value, none the value the model had)",
+        set.removed.join(" and ")
     )
 }
 
