@@ -384,8 +384,9 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
         Some(l) if explains => {
             let loc = ev.locate_after(lead);
             let text = format!(
-                "missing effect: {} explains the error on the channels it acts on ({:.0} % there); more remains elsewhere ({:.1}x the noise): {}",
+                "missing effect: {}{} explains the error on the channels it acts on ({:.0} % there); more remains elsewhere ({:.1}x the noise): {}",
                 describe(l),
+                confounded_with(l, ev.confounded.first(), o.confounded_cosine),
                 100.0 * red_a,
                 ratio_after,
                 place(&loc)
@@ -406,7 +407,8 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
         },
         Some(l) if l.reduction() >= o.unexplained_fraction => {
             let loc = ev.locate_after(lead);
-            (VerdictKind::Partial, partly_explained(l, ratio_after, &loc), Some(loc))
+            let group = confounded_with(l, ev.confounded.first(), o.confounded_cosine);
+            (VerdictKind::Partial, partly_explained(l, &group, ratio_after, &loc), Some(loc))
         }
         _ => {
             let loc = ev.locate_rest(&ev.p.base_sim);
@@ -613,21 +615,7 @@ fn local_structure(ratio: f64, st: &Structure) -> String {
 /// "missing effect: …", with its confounded group and the run that separates them, if a
 /// built-in profile does (its cosine below `separates`).
 fn missing(l: &Candidate, red_a: f64, group: Option<&ConfoundedGroup>, separates: f64) -> String {
-    let group = group.map(|g| {
-        let sep = g.separating_profile.as_ref().map(|(pr, cos)| {
-            if *cos < separates {
-                format!("; run {pr} to separate them (cosine {cos:.2})")
-            } else {
-                format!("; no built-in profile separates them (the best, {pr}, has cosine {cos:.2})")
-            }
-        });
-        format!(
-            " — confounded with {} on this run (cosine {:.2}){}",
-            g.effects[1..].join(", "),
-            g.cosine,
-            sep.unwrap_or_default()
-        )
-    });
+    let group = group.map(|g| confounded_text(g, separates));
     format!(
         "missing effect: {}, removes {:.0} % of the error above noise on the channels it acts on and leaves a noise-like residual{}",
         describe(l),
@@ -636,9 +624,37 @@ fn missing(l: &Candidate, red_a: f64, group: Option<&ConfoundedGroup>, separates
     )
 }
 
-fn partly_explained(l: &Candidate, ratio_after: f64, loc: &Location) -> String {
+/// `l`'s confounded group as `missing` says it, for a verdict that names `l` first
+/// ("partly explained: X — confounded with Y …, removes …"): a partial proposal is as
+/// much a coin toss between look-alikes as a full one, and the user must be told.
+fn confounded_with(l: &Candidate, group: Option<&ConfoundedGroup>, separates: f64) -> String {
+    match group.filter(|g| g.effects.first() == Some(&l.effect)) {
+        Some(g) => format!("{},", confounded_text(g, separates)),
+        None => String::new(),
+    }
+}
+
+/// " — confounded with B on this run (cosine c); run P to separate them (cosine c')",
+/// or that no built-in profile does (its cosine not below `separates`).
+fn confounded_text(g: &ConfoundedGroup, separates: f64) -> String {
+    let sep = g.separating_profile.as_ref().map(|(pr, cos)| {
+        if *cos < separates {
+            format!("; run {pr} to separate them (cosine {cos:.2})")
+        } else {
+            format!("; no built-in profile separates them (the best, {pr}, has cosine {cos:.2})")
+        }
+    });
     format!(
-        "partly explained: {} removes {:.0} % of the error above noise, but what remains is {:.1}x the noise and no library effect explains it: {}",
+        " — confounded with {} on this run (cosine {:.2}){}",
+        g.effects.get(1..).unwrap_or_default().join(", "),
+        g.cosine,
+        sep.unwrap_or_default()
+    )
+}
+
+fn partly_explained(l: &Candidate, group: &str, ratio_after: f64, loc: &Location) -> String {
+    format!(
+        "partly explained: {}{group} removes {:.0} % of the error above noise, but what remains is {:.1}x the noise and no library effect explains it: {}",
         describe(l),
         100.0 * l.reduction(),
         ratio_after,
@@ -799,6 +815,47 @@ mod tests {
         assert_eq!(names(rank(&[delay, lag.clone()]))[0], "sensor_delay.sutmotorenc");
         let partial = cand("controller_delay", 0.9, 100.0);
         assert_eq!(names(rank(&[partial, lag]))[0], "sensor_lag.sutmotorenc");
+    }
+
+    /// A partial verdict names its lead's look-alike and the run that separates them, as
+    /// a full one does (proof case 1,004,783 proposed a SuTMotorEnc lag for a hidden
+    /// delay, cosine 1.00, without a word); a group another effect leads is not its own.
+    #[test]
+    fn a_partial_lead_is_said_with_its_look_alike() {
+        let lead = Candidate {
+            effect: "sensor_lag.sutmotorenc",
+            params: Vec::new(),
+            predicted_reduction: 0.52,
+            confirmed_reduction: Some(0.52),
+            energy_after: None,
+            significant: true,
+            channels: Vec::new(),
+            regions: Vec::new(),
+            moves: vec!["SuTMotorEnc"],
+            leaves_structure: Some(true),
+            drift: None,
+            map_alias: None,
+            refused: None,
+            held: Vec::new(),
+        };
+        let group = |first: &'static str, cos: f64| ConfoundedGroup {
+            effects: vec![first, "sensor_delay.sutmotorenc"],
+            cosine: 0.99997,
+            separating_profile: Some(("TP14 --throttle-scale -1 --load-scale 0".into(), cos)),
+        };
+        let said = confounded_with(&lead, Some(&group("sensor_lag.sutmotorenc", 0.97)), 0.98);
+        assert!(
+            said.contains("confounded with sensor_delay.sutmotorenc on this run (cosine 1.00)"),
+            "{said}"
+        );
+        assert!(
+            said.contains("run TP14 --throttle-scale -1 --load-scale 0 to separate them (cosine 0.97)"),
+            "{said}"
+        );
+        let unseparated = confounded_with(&lead, Some(&group("sensor_lag.sutmotorenc", 0.99)), 0.98);
+        assert!(unseparated.contains("no built-in profile separates them"), "{unseparated}");
+        assert_eq!(confounded_with(&lead, Some(&group("controller_delay", 0.97)), 0.98), "");
+        assert_eq!(confounded_with(&lead, None, 0.98), "");
     }
 
     /// A physical candidate that removes most of V_DC's error but makes I_DC 1.2x worse
