@@ -45,6 +45,17 @@ impl ParamSpec {
         model_core::effects::effect(self.effect).and_then(|e| e.param(self.param)).and_then(|p| p.fit)?.scan
     }
 
+    /// Whether `v` of a physical parameter sits at an end of the search range away from
+    /// the neutral value: the data asks for more than the effect can physically give, so
+    /// a fit that ends there stands in for something else (a coupling damping at
+    /// 300 N m s/rad, 80x the thesis's, for a stiffer coupling). Not for the measurement
+    /// chain, whose ranges end at what a bench realistically has (a channel recorded
+    /// 99 ms late fits the delay's 0.1 s end).
+    pub fn at_end(&self, v: f64) -> bool {
+        let tol = 1e-6 * self.delta;
+        !self.is_chain() && (v - self.neutral).abs() > tol && (v >= self.upper - tol || v <= self.lower + tol)
+    }
+
     /// The smallest step in which the model can realise the parameter, at time step `dt`
     /// (0 where it is continuous).
     pub fn quantum(&self, dt: f64) -> f64 {
@@ -171,5 +182,24 @@ mod tests {
             );
             assert_eq!(current_value(&Effects::NONE, s), s.neutral, "{}.{}", s.effect, s.param);
         }
+    }
+
+    /// A physical fit at either end of its range away from neutral is at its end; one
+    /// inside, one at a neutral end, and a measurement-chain one are not.
+    #[test]
+    fn only_a_physical_fit_at_its_range_end_is_at_its_end() {
+        let lib = library(&Params::default());
+        let spec = |e: &str, q: &str| lib.iter().find(|s| s.effect == e && s.param == q).cloned().unwrap();
+        let damping = spec("coupling_damping", "damping_nm_s_per_rad");
+        assert!(damping.at_end(damping.upper));
+        assert!(!damping.at_end(0.99 * damping.upper));
+        assert!(!damping.at_end(damping.neutral));
+        let inertia = spec("inertia_scale", "sut");
+        assert!(inertia.at_end(inertia.lower) && inertia.at_end(inertia.upper));
+        let coulomb = spec("differential_friction", "coulomb_nm");
+        assert_eq!(coulomb.lower, coulomb.neutral);
+        assert!(!coulomb.at_end(coulomb.lower) && coulomb.at_end(coulomb.upper));
+        let delay = spec("sensor_delay", "c_kistler_r");
+        assert!(!delay.at_end(delay.upper));
     }
 }

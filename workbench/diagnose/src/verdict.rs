@@ -106,6 +106,12 @@ impl Evidence<'_> {
             return Some(format!("its {} {}", d.param, d.along.what()));
         }
         let Some(f) = self.after(c.effect) else { return Some("it was not refitted".into()) };
+        if let Some((sp, v)) = self.at_end(c) {
+            return Some(format!(
+                "its {} fits only at the end of its range ({v:.4} {}): it stands in for something else",
+                sp.param, sp.unit
+            ));
+        }
         if f.credit(self.p.e0) < self.o.min_reduction_of_noise * self.p.e_noise && !self.clears_structure(c) {
             return Some("its refit removes less than a chance fit of the noise".into());
         }
@@ -119,6 +125,15 @@ impl Evidence<'_> {
             ));
         }
         None
+    }
+
+    /// The first of `c`'s own parameters whose refit ends at its search range
+    /// ([`ParamSpec::at_end`]), with its value.
+    fn at_end(&self, c: &Candidate) -> Option<(&ParamSpec, f64)> {
+        c.params.iter().find_map(|fp| {
+            let sp = self.s.specs.iter().find(|s| s.cause == c.effect && s.param == fp.name)?;
+            sp.at_end(fp.value).then_some((sp, fp.value))
+        })
     }
 
     /// Whether `c`'s refit leaves no structure on the channels it moves where the current
@@ -453,6 +468,7 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
         .filter_map(member)
         .any(|c| ev.absorbs(c, &set.fit.sim) || c.drift.is_some() || c.map_alias.is_some())
         || set.effects.iter().any(|e| !set.supports(e))
+        || set.specs.iter().zip(&set.fit.values).any(|(sp, v)| sp.at_end(*v))
         || set.drift.is_some()
         || ev.worse(&set.fit.sim).is_some()
     {
