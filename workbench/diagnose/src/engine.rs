@@ -715,19 +715,8 @@ fn joint_fit(
     let sp: Vec<&ParamSpec> = ix.iter().map(|&i| &s.specs[i]).collect();
     let fit = refit(twin, p, o, &sp, &start)?;
     let starts: Vec<f64> = ix.iter().map(|&i| s.starts[i]).collect();
-    let Spread { std, reported, data, drift } = parameter_std(p, &fit, &sp, &starts, twin.dt_s());
-    let set = SetFit {
-        effects: groups.iter().map(|&g| s.groups[g].0).collect(),
-        specs: sp.into_iter().cloned().collect(),
-        fit,
-        std,
-        reported,
-        data,
-        starts,
-        drift,
-        removed: Vec::new(),
-        base: o.base,
-    };
+    let effects = groups.iter().map(|&g| s.groups[g].0).collect();
+    let set = SetFit::of(twin, p, (effects, Vec::new(), o.base), &sp, fit, starts);
     Some(take_out_returned(twin, p, o, set))
 }
 
@@ -752,22 +741,26 @@ fn take_out_returned(twin: &dyn Twin, p: &Prepared, o: &Options, set: SetFit) ->
     let start: Vec<f64> = keep.iter().map(|&k| set.fit.values[k]).collect();
     let Some(fit) = refit(twin, p, &Options { base, ..o.clone() }, &sp, &start) else { return set };
     let starts: Vec<f64> = keep.iter().map(|&k| set.starts[k]).collect();
-    let Spread { std, reported, data, drift } = parameter_std(p, &fit, &sp, &starts, twin.dt_s());
-    SetFit {
-        effects: set.effects.iter().copied().filter(|e| !gone.contains(e)).collect(),
-        specs: sp.into_iter().cloned().collect(),
-        fit,
-        std,
-        reported,
-        data,
-        starts,
-        drift,
-        removed: gone,
-        base,
-    }
+    let effects = set.effects.iter().copied().filter(|e| !gone.contains(e)).collect();
+    SetFit::of(twin, p, (effects, gone, base), &sp, fit, starts)
 }
 
 impl SetFit {
+    /// The set `effects` (the model's effects `removed` taken out, leaving `base`) from
+    /// the joint refit `fit` of `sp` started at `starts`, with its parameters' spread.
+    fn of(
+        twin: &dyn Twin,
+        p: &Prepared,
+        (effects, removed, base): (Vec<&'static str>, Vec<&'static str>, Effects),
+        sp: &[&ParamSpec],
+        fit: Fit,
+        starts: Vec<f64>,
+    ) -> SetFit {
+        let Spread { std, reported, data, drift } = parameter_std(p, &fit, sp, &starts, twin.dt_s());
+        let specs = sp.iter().map(|&s| s.clone()).collect();
+        SetFit { effects, specs, fit, std, reported, data, starts, drift, removed, base }
+    }
+
     /// Whether the joint fit supports member `effect`: some parameter of it moved from
     /// its start by more than 2 σ, as a single effect must to be significant. A member
     /// the others leave at its start (within its uncertainty) has no evidence of its own.
