@@ -17,7 +17,7 @@ use model_core::Channel;
 use super::library::ParamSpec;
 use super::linalg::solve_spd;
 use super::preparation::{Prepared, TIME_FOLDS};
-use super::refit::Fit;
+use super::refit::{in_scale, Fit};
 use super::sensitivities::normal_equations_by;
 
 /// Stretches each run is cut into: a single run's held-out folds, and the same fifths
@@ -121,11 +121,18 @@ impl Refitted<'_> {
             Along::Torque => (bands(p, &[Channel::CKistlerL, Channel::CKistlerR])?, 1..STRETCHES + 1),
         };
         let parts = counted.end;
-        let (g, b) = normal_equations_by(&p.weights, &fit.jac, |c, t| resid[c][t], parts, |_, t| part[t]);
+        // In each parameter's own scale (its sensitivity step), as the refit and its σ
+        // are solved: the solvers' ridge is relative to the largest diagonal.
+        let scale: Vec<f64> = specs.iter().map(|s| s.delta).collect();
+        let (g, b): (Vec<Vec<f64>>, Vec<Vec<f64>>) = {
+            let (g, b) = normal_equations_by(&p.weights, &fit.jac, |c, t| resid[c][t], parts, |_, t| part[t]);
+            g.iter().zip(&b).map(|(g, b)| in_scale(g, b, &scale)).unzip()
+        };
         let n = fit.jac.len();
         let total: Vec<f64> = (0..n * n).map(|x| g.iter().map(|gs| gs[x]).sum()).collect();
         (0..n).find_map(|i| {
-            let naive = inverse_diagonal(&total, n, i)?.sqrt();
+            let h = scale[i];
+            let naive = h * inverse_diagonal(&total, n, i)?.sqrt();
             // The sandwich's inflation over the white-noise σ, applied to every part.
             let inflate = (std.get(i)? / naive).max(1.0);
             let departure = (fit.values[i] - starts.get(i)?).abs();
@@ -139,7 +146,7 @@ impl Refitted<'_> {
                             (gii > 0.0).then(|| (b[s][i] / gii, 1.0 / gii))?
                         }
                     };
-                    let sd = inflate * var.sqrt();
+                    let (d, sd) = (h * d, h * inflate * var.sqrt());
                     (sd <= RESOLVE * departure).then_some((s as f64, fit.values[i] + d, sd))
                 })
                 .collect();

@@ -297,15 +297,21 @@ fn normal_equations(p: &Prepared, jac: &[Vec<Vec<f64>>], sim: &[Vec<f32>]) -> (V
 /// Try steps of increasing damping until one lowers the error; move `st` there.
 /// `Some(true)` if it moved by more than a relative 1e-6 of the error (worth another
 /// iteration), `None` if the damped system cannot be solved.
+/// The system is solved in each parameter's own scale (its sensitivity step), so the
+/// solver's ridge, relative to the largest diagonal, does not swamp a parameter whose
+/// unit makes its information small (a stiffness in N m/rad beside a resistance in Ω).
 fn damped_step(pb: &Problem, g: &[f64], b: &[f64], lambda: &mut f64, st: &mut State) -> Option<bool> {
     let n = b.len();
+    let scale: Vec<f64> = pb.specs.iter().map(|s| s.delta).collect();
+    let (g, b) = in_scale(g, b, &scale);
     for _ in 0..DAMPING_TRIES {
-        let mut gl = g.to_vec();
+        let mut gl = g.clone();
         for i in 0..n {
             gl[i * n + i] *= 1.0 + *lambda;
         }
-        let step = solve_spd(&gl, b, 1e-12)?;
-        let mut cand: Vec<f64> = st.theta.iter().zip(&step).map(|(a, d)| a + d).collect();
+        let step = solve_spd(&gl, &b, 1e-12)?;
+        let mut cand: Vec<f64> =
+            st.theta.iter().zip(step.iter().zip(&scale)).map(|(a, (d, h))| a + d * h).collect();
         pb.clamp(&mut cand);
         let Some(s2) = pb.run(&cand) else { return Some(false) };
         let e2 = energy(pb.p, &s2);
@@ -324,6 +330,15 @@ fn damped_step(pb: &Problem, g: &[f64], b: &[f64], lambda: &mut f64, st: &mut St
         *lambda *= 10.0;
     }
     Some(false)
+}
+
+/// The normal equations `g` (row-major), `b` for parameters measured in units of
+/// `scale` (`θ = scale · u`): `D g D` and `D b` with `D = diag(scale)`.
+pub(super) fn in_scale(g: &[f64], b: &[f64], scale: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let n = scale.len();
+    let gs = (0..n * n).map(|k| g[k] * scale[k / n] * scale[k % n]).collect();
+    let bs = b.iter().zip(scale).map(|(x, h)| x * h).collect();
+    (gs, bs)
 }
 
 /// Fine scan around a one-parameter optimum (±25 % of its distance from the neutral

@@ -68,11 +68,23 @@ pub(super) fn parameter_std(
         .zip(&fit.sim)
         .map(|(m, s)| p.idx.iter().map(|&t| m[t] - f64::from(s[t])).collect())
         .collect();
-    let mut std = sandwich_std(&p.weights, &resid, &fit.jac, level_win, 2 * level_win);
-    let sandwich = std.clone();
+    // In each parameter's own scale (its sensitivity step): the solvers' ridge and the
+    // test for a parameter without information are relative to the largest diagonal, which
+    // in raw units a resistance in Ω dwarfs a stiffness in N m/rad by 1e13 (a stiffness
+    // refitted beside a held connector resistance was called undetermined).
+    let scale: Vec<f64> = specs.iter().map(|s| s.delta).collect();
+    let jac: Vec<Vec<Vec<f64>>> = fit
+        .jac
+        .iter()
+        .zip(&scale)
+        .map(|(ji, h)| ji.iter().map(|jc| jc.iter().map(|j| j * h).collect()).collect())
+        .collect();
+    let unscaled = |v: Vec<f64>| -> Vec<f64> { v.into_iter().zip(&scale).map(|(x, h)| x * h).collect() };
+    let sandwich = sandwich_std(&p.weights, &resid, &jac, level_win, 2 * level_win);
+    let mut std = unscaled(sandwich.clone());
     let drift = drift(p, &resid, fit, specs, starts, &std);
     let folds: Vec<usize> = p.idx.iter().map(|&t| p.folds.get(t).copied().unwrap_or(0)).collect();
-    if let Some(jack) = fold_jackknife_std(&p.weights, &resid, &fit.jac, &folds) {
+    if let Some(jack) = fold_jackknife_std(&p.weights, &resid, &jac, &folds).map(unscaled) {
         for (sd, j) in std.iter_mut().zip(jack) {
             if sd.is_finite() && j.is_finite() {
                 *sd = sd.max(j);
@@ -105,8 +117,13 @@ pub(super) fn parameter_std(
     // tested (a systematic error of the value, not evidence against the effect).
     let determined: Vec<bool> = std.iter().map(|sd| sd.is_finite()).collect();
     let effects: Vec<&str> = specs.iter().map(|s| s.effect).collect();
-    let data =
-        systematic_std(&p.weights, (&fit.jac, &resid), (&determined, &effects), &p.data_items, &sandwich);
+    let data = unscaled(systematic_std(
+        &p.weights,
+        (&jac, &resid),
+        (&determined, &effects),
+        &p.data_items,
+        &sandwich,
+    ));
     let reported = with(birge).into_iter().zip(&data).map(|(r, d)| r.hypot(*d)).collect();
     // Once a round had to correct the data, it is shown to be off, and a table corrects
     // only what it could locate: an effect new to the model must stand out of what the
