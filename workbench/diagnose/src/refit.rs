@@ -490,6 +490,41 @@ mod tests {
         assert!((fit.jac[1][0][k] / dk - 1.0).abs() < 0.01, "dy/dk {} vs {dk}", fit.jac[1][0][k]);
     }
 
+    /// The decay with its amplitude in units 1e4 times too small and its rate in units
+    /// 1e3 times too large, as a stiffness in N m/rad sits beside a resistance in Ω: the
+    /// two diagonals of `J'WJ` differ by about 1e14, so a ridge relative to the larger one
+    /// swamps the smaller (LM barely moved it and its σ came out undetermined). Solved in
+    /// each parameter's own scale, both are fitted and both σ are finite.
+    #[test]
+    fn parameters_of_very_different_scales_are_fitted_together() {
+        struct Scaled(Decay);
+        impl Twin for Scaled {
+            fn channels(&self) -> &[Channel] {
+                self.0.channels()
+            }
+            fn samples(&self) -> usize {
+                self.0.samples()
+            }
+            fn dt_s(&self) -> f64 {
+                DT
+            }
+            fn run(&self, fx: &Effects) -> Result<Vec<Vec<f32>>, String> {
+                let (a, k) = (param(fx, "coulomb_nm") * 1e-4, param(fx, "viscous_nm_s_per_rad") * 1e3);
+                Ok(vec![(0..self.0.n).map(|i| (a * (-k * i as f64 * DT).exp()) as f32).collect()])
+            }
+        }
+        let (twin, p) = setup(500);
+        let twin = Scaled(twin);
+        let o = Options { threads: 2, ..Options::default() };
+        let sa = ParamSpec { delta: 100.0, ..spec("coulomb_nm", 1e6) };
+        let sk = ParamSpec { delta: 1e-5, ..spec("viscous_nm_s_per_rad", 0.02) };
+        let fit = refit(&twin, &p, &o, &[&sa, &sk], &[3e4, 1e-3]).expect("the twin runs");
+        assert!((fit.values[0] / 5e4 - 1.0).abs() < 1e-4, "A = {}", fit.values[0]);
+        assert!((fit.values[1] / 1.5e-3 - 1.0).abs() < 1e-4, "k = {}", fit.values[1]);
+        let sd = crate::uncertainty::parameter_std(&p, &fit, &[&sa, &sk], &[0.0, 0.0], DT).std;
+        assert!(sd.iter().all(|s| s.is_finite() && *s > 0.0), "σ {sd:?}");
+    }
+
     /// One parameter (the rate, amplitude known): coarse grid, LM and profile scan, from
     /// a start far off; the profile brackets the optimum.
     #[test]
