@@ -784,7 +784,7 @@ impl SetFit {
             let (mut held, mut holds, mut excludes) = (false, true, false);
             for (sp, (&v, (&sd, &s0))) in params.filter(|(sp, _)| sp.cause == e) {
                 let (lo, hi) = FittedParam::refitted(sp, v, (sd, 0.0), s0).ci95;
-                held |= (s0 - sp.neutral).abs() > 1e-6 * sp.delta;
+                held |= sp.off_neutral(s0);
                 holds &= lo <= sp.neutral && sp.neutral <= hi;
                 excludes |= s0 < lo || s0 > hi;
             }

@@ -45,6 +45,12 @@ impl ParamSpec {
         model_core::effects::effect(self.effect).and_then(|e| e.param(self.param)).and_then(|p| p.fit)?.scan
     }
 
+    /// Whether `v` is off the neutral value by more than rounding (a millionth of the
+    /// sensitivity step): the effect is in a model that holds it there.
+    pub fn off_neutral(&self, v: f64) -> bool {
+        (v - self.neutral).abs() > 1e-6 * self.delta
+    }
+
     /// Whether `v` of a physical parameter sits at an end of the search range away from
     /// the neutral value: the data asks for more than the effect can physically give, so
     /// a fit that ends there stands in for something else (a coupling damping at
@@ -53,7 +59,7 @@ impl ParamSpec {
     /// 99 ms late fits the delay's 0.1 s end).
     pub fn at_end(&self, v: f64) -> bool {
         let tol = 1e-6 * self.delta;
-        !self.is_chain() && (v - self.neutral).abs() > tol && (v >= self.upper - tol || v <= self.lower + tol)
+        !self.is_chain() && self.off_neutral(v) && (v >= self.upper - tol || v <= self.lower + tol)
     }
 
     /// The smallest step in which the model can realise the parameter, at time step `dt`

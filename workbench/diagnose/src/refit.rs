@@ -178,9 +178,7 @@ pub(super) struct Held {
 
 impl Held {
     pub(super) fn refit(twin: &dyn Twin, p: &Prepared, s: &Sensitivities, o: &Options) -> Held {
-        let ix: Vec<usize> = (0..s.specs.len())
-            .filter(|&i| (s.starts[i] - s.specs[i].neutral).abs() > 1e-6 * s.specs[i].delta)
-            .collect();
+        let ix: Vec<usize> = (0..s.specs.len()).filter(|&i| s.specs[i].off_neutral(s.starts[i])).collect();
         let specs: Vec<&ParamSpec> = ix.iter().map(|&i| &s.specs[i]).collect();
         let start: Vec<f64> = ix.iter().map(|&i| s.starts[i]).collect();
         let fit = if ix.is_empty() { None } else { refit(twin, p, o, &specs, &start) };
@@ -297,6 +295,7 @@ fn normal_equations(p: &Prepared, jac: &[Vec<Vec<f64>>], sim: &[Vec<f32>]) -> (V
 /// Try steps of increasing damping until one lowers the error; move `st` there.
 /// `Some(true)` if it moved by more than a relative 1e-6 of the error (worth another
 /// iteration), `None` if the damped system cannot be solved.
+///
 /// The system is solved in each parameter's own scale (its sensitivity step), so the
 /// solver's ridge, relative to the largest diagonal, does not swamp a parameter whose
 /// unit makes its information small (a stiffness in N m/rad beside a resistance in Ω).
