@@ -771,6 +771,18 @@ impl SetFit {
             .any(|(sp, (v, (sd, s0)))| sp.cause == effect && super::refit::moved(*v, *s0, *sd, sp))
     }
 
+    /// Whether some parameter of `effect` has its reported 95 % interval (the
+    /// statistical and the data parts) clear of the thesis model's value: the joint refit
+    /// holds it away from neutral by more than the maps' uncertainty could.
+    pub fn clear_of_neutral(&self, effect: &str) -> bool {
+        let params =
+            self.specs.iter().zip(self.fit.values.iter().zip(self.reported.iter().zip(&self.starts)));
+        params.filter(|(sp, _)| sp.cause == effect).any(|(sp, (&v, (&sd, &s0)))| {
+            let (lo, hi) = FittedParam::refitted(sp, v, (sd, 0.0), s0).ci95;
+            sp.neutral < lo || sp.neutral > hi
+        })
+    }
+
     /// The members already in the model (some parameter started off its neutral value)
     /// that the joint refit returns to the thesis model: every parameter's reported 95 %
     /// interval holds its neutral value, and some parameter's excludes the value the
@@ -956,5 +968,46 @@ mod tests {
             base: Effects::NONE,
         };
         assert_eq!(set.returned(), vec!["inertia_scale", "coupling_damping"]);
+    }
+
+    /// A member is clear of the thesis model when the reported interval (statistical and
+    /// data parts) of one of its parameters excludes the neutral value: tuning case
+    /// 500,800's axle friction scale (left 1.4547 ± 0.0238, beside a connector
+    /// resistance) is; 500,821's (0.887 ± 0.292, 0.864 ± 0.349 beside perturbed friction
+    /// maps) is not, nor is one that only its statistical σ would hold clear.
+    #[test]
+    fn a_member_is_clear_of_neutral_only_by_its_reported_interval() {
+        let lib = super::super::library::library(&Params::default());
+        let axle: Vec<ParamSpec> =
+            lib.iter().filter(|s| s.effect == "axle_friction_scale").cloned().collect();
+        assert_eq!(axle.len(), 2, "left and right");
+        let set = |values: Vec<f64>, std: Vec<f64>, reported: Vec<f64>| SetFit {
+            effects: vec![axle[0].cause],
+            specs: axle.clone(),
+            fit: Fit {
+                values,
+                sim: Vec::new(),
+                jac: Vec::new(),
+                energy: 0.0,
+                profile: Vec::new(),
+                held: None,
+            },
+            std,
+            data: vec![0.0; 2],
+            reported,
+            starts: vec![1.0, 1.0],
+            drift: None,
+            removed: Vec::new(),
+            base: Effects::NONE,
+        };
+        let sd = |a: f64, b: f64| vec![a / 1.96, b / 1.96];
+        let clear = set(vec![1.4547, 1.0559], sd(0.0238, 0.0031), sd(0.0238, 0.0031));
+        assert!(clear.clear_of_neutral("axle_friction_scale"));
+        let wide = set(vec![0.887, 0.864], sd(0.292, 0.349), sd(0.292, 0.349));
+        assert!(!wide.clear_of_neutral("axle_friction_scale"));
+        let data_wide = set(vec![0.887, 0.864], sd(0.01, 0.01), sd(0.292, 0.349));
+        assert!(data_wide.supports("axle_friction_scale"), "statistically it moved");
+        assert!(!data_wide.clear_of_neutral("axle_friction_scale"));
+        assert!(!clear.clear_of_neutral("connector_resistance"), "not a member");
     }
 }

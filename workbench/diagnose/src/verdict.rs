@@ -461,13 +461,17 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
         return None;
     }
     // A sensor member that leaves its channel above the noise only absorbs error there.
+    // A member that drifts when fitted alone may be averaging a partner's effect, which
+    // the joint refit takes from it (an axle friction scale beside a connector
+    // resistance, each drifting with the load alone); it stays only when the set holds
+    // it clear of the thesis value by more than the data's uncertainty (the set's own
+    // drift is tested below).
     let member = |e: &&'static str| ev.cands.iter().find(|c| c.effect == *e);
-    if set
-        .effects
-        .iter()
-        .filter_map(member)
-        .any(|c| ev.absorbs(c, &set.fit.sim) || c.drift.is_some() || c.map_alias.is_some())
-        || set.effects.iter().any(|e| !set.supports(e))
+    if set.effects.iter().filter_map(member).any(|c| {
+        ev.absorbs(c, &set.fit.sim)
+            || (c.drift.is_some() && !set.clear_of_neutral(c.effect))
+            || c.map_alias.is_some()
+    }) || set.effects.iter().any(|e| !set.supports(e))
         || set.specs.iter().zip(&set.fit.values).any(|(sp, v)| sp.at_end(*v))
         || set.drift.is_some()
         || ev.worse(&set.fit.sim).is_some()
