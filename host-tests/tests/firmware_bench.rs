@@ -230,10 +230,19 @@ fn xil_set_points_from_the_serial_stream_drive_the_model() {
     let mut end = [0u8; protocol::FRAME_OVERHEAD];
     let n = protocol::encode_frame(protocol::KIND_END, &[], &mut end).unwrap();
     input.extend_from_slice(&end[..n]);
-    link.write_all(&input).expect("send to the UART");
+    // Read while writing: the firmware streams output frames from its first step, and
+    // a reader that starts only after the last input byte left them queued in the
+    // socket; on a loaded host the UART then stayed busy long enough for the firmware
+    // to drop a frame (CI beside a sweep, frames_dropped=1).
     link.set_read_timeout(Some(TIMEOUT)).unwrap();
-    let mut captured = Vec::new();
-    let _ = link.read_to_end(&mut captured); // until QEMU exits
+    let mut rx = link.try_clone().expect("a second handle on the UART socket");
+    let reader = std::thread::spawn(move || {
+        let mut captured = Vec::new();
+        let _ = rx.read_to_end(&mut captured); // until QEMU exits
+        captured
+    });
+    link.write_all(&input).expect("send to the UART");
+    let captured = reader.join().expect("the UART reader");
     qemu.wait(TIMEOUT);
 
     let (outs, stats) = parse_uart(&captured);
