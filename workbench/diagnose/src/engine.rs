@@ -882,6 +882,31 @@ fn after<T>(v: &[T], k: usize) -> &[T] {
 mod tests {
     use super::*;
 
+    /// A set of `specs` (members `effects`) fitted at `values` from `starts`, with σ
+    /// `(std, reported)`: the test whether each moved and the stated one; nothing
+    /// simulated, nothing taken out.
+    fn set_at(
+        (effects, specs): (Vec<&'static str>, Vec<ParamSpec>),
+        values: Vec<f64>,
+        (std, reported): (Vec<f64>, Vec<f64>),
+        starts: Vec<f64>,
+    ) -> SetFit {
+        let data = vec![0.0; starts.len()];
+        let fit = Fit::fixed(values, Vec::new(), 0.0);
+        SetFit {
+            effects,
+            specs,
+            fit,
+            std,
+            reported,
+            data,
+            starts,
+            drift: None,
+            removed: Vec::new(),
+            base: Effects::NONE,
+        }
+    }
+
     /// A member the joint fit moves by 3 σ is supported; one it leaves within 1 σ of its
     /// start is not, nor one whose σ is undetermined.
     #[test]
@@ -889,25 +914,12 @@ mod tests {
         let lib = super::super::library::library(&Params::default());
         let spec = |e: &str| lib.iter().find(|s| s.effect == e).cloned().expect("a library effect");
         let (a, b, c) = (spec("supply_resistance"), spec("regen_efficiency"), spec("controller_delay"));
-        let set = SetFit {
-            effects: vec![a.cause, b.cause, c.cause],
-            specs: vec![a, b, c],
-            fit: Fit {
-                values: vec![0.013, 0.05, 0.08],
-                sim: Vec::new(),
-                jac: Vec::new(),
-                energy: 0.0,
-                profile: Vec::new(),
-                held: None,
-            },
-            std: vec![0.001, 0.05, f64::INFINITY],
-            reported: vec![0.001, 0.05, f64::INFINITY],
-            data: vec![0.0; 3],
-            starts: vec![0.010, 0.0, 0.0],
-            drift: None,
-            removed: Vec::new(),
-            base: Effects::NONE,
-        };
+        let set = set_at(
+            (vec![a.cause, b.cause, c.cause], vec![a, b, c]),
+            vec![0.013, 0.05, 0.08],
+            (vec![0.001, 0.05, f64::INFINITY], vec![0.001, 0.05, f64::INFINITY]),
+            vec![0.010, 0.0, 0.0],
+        );
         assert!(set.supports("supply_resistance"));
         assert!(!set.supports("regen_efficiency"));
         assert!(!set.supports("controller_delay"));
@@ -948,25 +960,8 @@ mod tests {
                 sd.push(d);
             }
         }
-        let set = SetFit {
-            effects: members.iter().map(|(e, _)| *e).collect(),
-            specs: sp,
-            fit: Fit {
-                values,
-                sim: Vec::new(),
-                jac: Vec::new(),
-                energy: 0.0,
-                profile: Vec::new(),
-                held: None,
-            },
-            std: sd.clone(),
-            reported: sd,
-            data: vec![0.0; starts.len()],
-            starts,
-            drift: None,
-            removed: Vec::new(),
-            base: Effects::NONE,
-        };
+        let effects = members.iter().map(|(e, _)| *e).collect();
+        let set = set_at((effects, sp), values, (sd.clone(), sd), starts);
         assert_eq!(set.returned(), vec!["inertia_scale", "coupling_damping"]);
     }
 
@@ -981,24 +976,8 @@ mod tests {
         let axle: Vec<ParamSpec> =
             lib.iter().filter(|s| s.effect == "axle_friction_scale").cloned().collect();
         assert_eq!(axle.len(), 2, "left and right");
-        let set = |values: Vec<f64>, std: Vec<f64>, reported: Vec<f64>| SetFit {
-            effects: vec![axle[0].cause],
-            specs: axle.clone(),
-            fit: Fit {
-                values,
-                sim: Vec::new(),
-                jac: Vec::new(),
-                energy: 0.0,
-                profile: Vec::new(),
-                held: None,
-            },
-            std,
-            data: vec![0.0; 2],
-            reported,
-            starts: vec![1.0, 1.0],
-            drift: None,
-            removed: Vec::new(),
-            base: Effects::NONE,
+        let set = |values: Vec<f64>, std: Vec<f64>, reported: Vec<f64>| {
+            set_at((vec![axle[0].cause], axle.clone()), values, (std, reported), vec![1.0, 1.0])
         };
         let sd = |a: f64, b: f64| vec![a / 1.96, b / 1.96];
         let clear = set(vec![1.4547, 1.0559], sd(0.0238, 0.0031), sd(0.0238, 0.0031));
