@@ -249,10 +249,20 @@ fn xil_set_points_from_the_serial_stream_drive_the_model() {
     eprintln!("xil: {stats}");
     assert_eq!(stats.get("inputs_received"), 1, "{stats}");
     assert_eq!(stats.get("inputs_rejected"), 1, "{stats}");
-    for f in ["late", "overruns", "frames_dropped"] {
+    for f in ["late", "overruns"] {
         assert_eq!(stats.get(f), 0, "{f}: {stats}");
     }
     assert!(stats.get("steps") >= 10, "{stats}");
+    // Every streamed step's frame (every OUTPUT_EVERY-th) arrived, in sequence, or was
+    // counted as dropped. Whether the emulated UART keeps up is the host's scheduling,
+    // not the firmware's: with four busy loops on this 2-core machine one run in three
+    // dropped 1 of 195 frames, so no drop count is asserted, only that none goes
+    // uncounted.
+    for (i, f) in outs.iter().enumerate() {
+        assert_eq!(f.seq as usize, i, "frame sequence");
+    }
+    let streamed = (stats.get("steps") as usize).div_ceil(OUTPUT_EVERY);
+    assert_eq!(outs.len() + stats.get("frames_dropped") as usize, streamed, "{stats}");
     // The model ran on the streamed set point: the throttle voltage the host model
     // makes of it.
     let mut host = Model::new(&fw::config(RateSet::Identified, Effects::NONE)).unwrap();
