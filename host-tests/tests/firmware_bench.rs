@@ -230,10 +230,9 @@ fn xil_set_points_from_the_serial_stream_drive_the_model() {
     let mut end = [0u8; protocol::FRAME_OVERHEAD];
     let n = protocol::encode_frame(protocol::KIND_END, &[], &mut end).unwrap();
     input.extend_from_slice(&end[..n]);
-    // Read while writing: the firmware streams output frames from its first step, and
-    // a reader that starts only after the last input byte left them queued in the
-    // socket; on a loaded host the UART then stayed busy long enough for the firmware
-    // to drop a frame (CI beside a sweep, frames_dropped=1).
+    // Read while writing: the firmware streams output frames from its first step while
+    // the input is still going in, so the output is drained as it comes, not left
+    // queued in the socket until the last input byte is sent.
     link.set_read_timeout(Some(TIMEOUT)).unwrap();
     let mut rx = link.try_clone().expect("a second handle on the UART socket");
     let reader = std::thread::spawn(move || {

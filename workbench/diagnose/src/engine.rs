@@ -771,16 +771,24 @@ impl SetFit {
             .any(|(sp, (v, (sd, s0)))| sp.cause == effect && super::refit::moved(*v, *s0, *sd, sp))
     }
 
-    /// Whether some parameter of `effect` has its reported 95 % interval (the
-    /// statistical and the data parts) clear of the thesis model's value: the joint refit
-    /// holds it away from neutral by more than the maps' uncertainty could.
-    pub fn clear_of_neutral(&self, effect: &str) -> bool {
+    /// Each parameter of `effect`: its spec, its start and its reported 95 % interval
+    /// (the statistical and the data parts).
+    fn intervals<'a>(
+        &'a self,
+        effect: &'a str,
+    ) -> impl Iterator<Item = (&'a ParamSpec, f64, (f64, f64))> + 'a {
         let params =
             self.specs.iter().zip(self.fit.values.iter().zip(self.reported.iter().zip(&self.starts)));
-        params.filter(|(sp, _)| sp.cause == effect).any(|(sp, (&v, (&sd, &s0)))| {
-            let (lo, hi) = FittedParam::refitted(sp, v, (sd, 0.0), s0).ci95;
-            sp.neutral < lo || sp.neutral > hi
-        })
+        params
+            .filter(move |(sp, _)| sp.cause == effect)
+            .map(|(sp, (&v, (&sd, &s0)))| (sp, s0, FittedParam::refitted(sp, v, (sd, 0.0), s0).ci95))
+    }
+
+    /// Whether some parameter of `effect` has its reported 95 % interval clear of the
+    /// thesis model's value: the joint refit holds it away from neutral by more than the
+    /// maps' uncertainty could.
+    pub fn clear_of_neutral(&self, effect: &str) -> bool {
+        self.intervals(effect).any(|(sp, _, (lo, hi))| sp.neutral < lo || sp.neutral > hi)
     }
 
     /// The members already in the model (some parameter started off its neutral value)
@@ -791,11 +799,8 @@ impl SetFit {
     pub fn returned(&self) -> Vec<&'static str> {
         let mut out: Vec<&'static str> = Vec::new();
         for &e in &self.effects {
-            let params =
-                self.specs.iter().zip(self.fit.values.iter().zip(self.reported.iter().zip(&self.starts)));
             let (mut held, mut holds, mut excludes) = (false, true, false);
-            for (sp, (&v, (&sd, &s0))) in params.filter(|(sp, _)| sp.cause == e) {
-                let (lo, hi) = FittedParam::refitted(sp, v, (sd, 0.0), s0).ci95;
+            for (sp, s0, (lo, hi)) in self.intervals(e) {
                 held |= sp.off_neutral(s0);
                 holds &= lo <= sp.neutral && sp.neutral <= hi;
                 excludes |= s0 < lo || s0 > hi;
