@@ -609,7 +609,7 @@ pub(super) fn correct(inp: &Inputs) -> Option<Empirical> {
         before_corrections(&base).and_then(|d| twin.run_data(&Arc::new(d), &inp.fx, p.stride).ok());
     let b = Basis { rows, folds, sim0, sim_before, r, w, energy, excess };
     let maps = candidates(&base, &twin.set_points());
-    let chosen = screen(inp, &base, &maps, &b);
+    let (chosen, repair) = screen(inp, &base, &maps, &b);
     if chosen.is_empty() {
         return None;
     }
@@ -632,7 +632,8 @@ pub(super) fn correct(inp: &Inputs) -> Option<Empirical> {
         keep_moving(&mut maps[m], &mut cols[slot], &b.w);
     }
     let screened: Vec<&MapNodes> = chosen.iter().map(|&m| &maps[m]).collect();
-    select(inp, &base, &screened, &cols, &b)
+    let repair = repair.and_then(|r| chosen.iter().position(|&m| m == r));
+    select(inp, &base, &screened, &cols, &b, repair)
 }
 
 /// Held-out folds of the table fits: [`BLOCK_S`] blocks of time dealt out in turn.
@@ -689,8 +690,10 @@ fn candidates(base: &ModelData, sps: &[SetPoints]) -> Vec<MapNodes> {
 
 /// Maps whose shift and tilt over their visited nodes can remove at least
 /// [`SCREEN_SHARE`] of the excess, best first, at most [`MAX_MAPS`], with their
-/// companions ([`CHAIN`]).
-fn screen(inp: &Inputs, base: &ModelData, maps: &[MapNodes], b: &Basis) -> Vec<usize> {
+/// companions ([`CHAIN`]); and, beside a proposal that alone makes channels worse
+/// ([`Inputs::against_current`]), the map that best repairs those channels
+/// ([`harmed_weights`]), added to them.
+fn screen(inp: &Inputs, base: &ModelData, maps: &[MapNodes], b: &Basis) -> (Vec<usize>, Option<usize>) {
     let jobs: Vec<(usize, bool)> = (0..maps.len()).flat_map(|m| [(m, false), (m, true)]).collect();
     let runs: Vec<RunResult> = run_each(&jobs, inp.o, |&(m, tilt)| {
         let n = maps[m].nodes.len();
@@ -700,6 +703,8 @@ fn screen(inp: &Inputs, base: &ModelData, maps: &[MapNodes], b: &Basis) -> Vec<u
         inp.twin.run_data(&d, &inp.fx, inp.p.stride)
     });
     let mut scored: Vec<(usize, f64)> = Vec::new();
+    let harmed = if inp.against_current { harmed_weights(inp.p, b) } else { None };
+    let mut repair: Option<(usize, f64)> = None;
     for (m, pair) in runs.chunks(2).enumerate() {
         let cols: Vec<Vec<Vec<f64>>> =
             pair.iter().filter_map(|o| o.as_ref().ok()).map(|o| b.diff(o)).collect();
@@ -709,6 +714,14 @@ fn screen(inp: &Inputs, base: &ModelData, maps: &[MapNodes], b: &Basis) -> Vec<u
         // One node has no tilt (its "tilt" is the shift reversed).
         let shapes = if maps[m].nodes.len() == 1 { 1 } else { 2 };
         let refs: Vec<&Vec<Vec<f64>>> = cols.iter().take(shapes).collect();
+        if let Some(w) = &harmed {
+            let nh = normal(&refs, &b.r, w, &b.folds, FOLDS);
+            let gain = solve_spd(&nh.g, &nh.b, 1e-9)
+                .map_or(0.0, |th| th.iter().zip(&nh.b).map(|(x, y)| x * y).sum());
+            if gain > 0.0 && repair.is_none_or(|(_, g)| gain > g) {
+                repair = Some((m, gain));
+            }
+        }
         let nm = b.normal(&refs);
         let Some(th) = solve_spd(&nm.g, &nm.b, 1e-9) else { continue };
         let removed: f64 = th.iter().zip(&nm.b).map(|(x, y)| x * y).sum();
@@ -718,8 +731,35 @@ fn screen(inp: &Inputs, base: &ModelData, maps: &[MapNodes], b: &Basis) -> Vec<u
     }
     scored.sort_by(|a, b| b.1.total_cmp(&a.1));
     let mut chosen: Vec<usize> = scored.into_iter().take(MAX_MAPS).map(|(m, _)| m).collect();
+    let repair = repair.map(|(m, _)| m);
+    if let Some(m) = repair.filter(|m| !chosen.contains(m)) {
+        chosen.push(m);
+    }
     with_companions(&mut chosen, maps);
-    chosen
+    (chosen, repair)
+}
+
+/// The weights `[channel][row]` kept only where the model with the proposal makes a
+/// channel worse than the current model by more than [`WORSE`] (the guard's ratio, in
+/// RMSE), run by run as the guard judges a campaign; `None` when it makes none worse.
+fn harmed_weights(p: &Prepared, b: &Basis) -> Option<Vec<Vec<f64>>> {
+    let nf = p.runs.max(1);
+    let run = |k: usize| if nf > 1 { p.folds.get(b.rows[k]).copied().unwrap_or(0).min(nf - 1) } else { 0 };
+    let mut any = false;
+    let w: Vec<Vec<f64>> = (0..b.r.len())
+        .map(|c| {
+            let (mut now, mut before) = (vec![0.0; nf], vec![0.0; nf]);
+            for (k, w) in b.w[c].iter().enumerate() {
+                let t = b.rows[k];
+                now[run(k)] += w * b.r[c][k].powi(2);
+                before[run(k)] += w * (p.meas[c][t] - f64::from(p.base_sim[c][t])).powi(2);
+            }
+            let harmed: Vec<bool> = now.iter().zip(&before).map(|(n, e)| *n > WORSE * WORSE * e).collect();
+            any |= harmed.iter().any(|h| *h);
+            b.w[c].iter().enumerate().map(|(k, w)| if harmed[run(k)] { *w } else { 0.0 }).collect()
+        })
+        .collect();
+    any.then_some(w)
 }
 
 /// The throttle chain's tables, each the others' companion: the volts per percent sets
@@ -755,6 +795,7 @@ fn select(
     maps: &[&MapNodes],
     cols: &[Vec<Vec<Vec<f64>>>],
     b: &Basis,
+    repair: Option<usize>,
 ) -> Option<Empirical> {
     let excess = b.excess;
     let fit_of = |set: &[usize]| {
@@ -785,6 +826,18 @@ fn select(
                 best = f;
             }
             _ => break,
+        }
+    }
+    // The map that repairs what the proposal beside the table harms joins whenever it
+    // costs nothing on held-out data: the guard judges the two on every channel, and
+    // the whole run's energy hardly sees one current's.
+    if let Some(r) = repair.filter(|r| !set.contains(r)) {
+        let mut t = set.clone();
+        t.push(r);
+        let f = fit_of(&t);
+        if f.heldout >= best.heldout {
+            set = t;
+            best = f;
         }
     }
     if set.is_empty() {
@@ -1068,6 +1121,39 @@ fn label(data: Arc<ModelData>, maps: &[&MapNodes], heldout: f64, samples: usize)
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Beside a proposal, the harmed rows are those of a channel it makes worse than
+    /// the current model by more than the guard's ratio on one run of a campaign
+    /// (1.3x there, as connector resistance made I_DPU on tuning case 500,744), not the
+    /// channel's other run (unchanged) nor a channel made 1.1x worse; none when nothing
+    /// is harmed.
+    #[test]
+    fn the_repair_is_aimed_at_the_run_and_channel_made_worse() {
+        let n = 8;
+        let noise = |k: usize| if k.is_multiple_of(2) { 1.0 } else { -1.0 };
+        let p = Prepared {
+            meas: vec![vec![0.0; n], vec![0.0; n]],
+            base_sim: vec![(0..n).map(|k| noise(k) as f32).collect(); 2],
+            idx: (0..n).collect(),
+            runs: 2,
+            folds: (0..n).map(|k| k / 4).collect(),
+            ..Default::default()
+        };
+        let basis = |scale: [[f64; 2]; 2]| Basis {
+            rows: (0..n).collect(),
+            folds: vec![0; n],
+            sim0: Vec::new(),
+            sim_before: None,
+            r: (0..2).map(|c| (0..n).map(|k| -noise(k) * scale[c][k / 4]).collect()).collect(),
+            w: vec![vec![1.0; n]; 2],
+            energy: 0.0,
+            excess: 0.0,
+        };
+        let w = harmed_weights(&p, &basis([[1.0, 1.3], [1.1, 1.0]])).expect("run 2 of channel 0 is harmed");
+        assert_eq!(w[0], [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]);
+        assert_eq!(w[1], [0.0; 8], "1.1x is within the guard");
+        assert!(harmed_weights(&p, &basis([[1.0, 1.1], [1.0, 0.5]])).is_none());
+    }
 
     /// A map a diagnosis corrected (and labelled) goes back to the built-in values; a
     /// map changed by the user without the label is theirs and stays; data with no
