@@ -234,8 +234,7 @@ fn inverse_diagonal(a: &[f64], n: usize, i: usize) -> Option<f64> {
 /// Per fit sample, the fifth of its run it lies in.
 fn stretches(p: &Prepared) -> Vec<usize> {
     let n = p.idx.len();
-    // A single run's folds are its own fifths, not runs.
-    let run = |t: usize| if p.runs > 1 { p.folds.get(t).copied().unwrap_or(0) } else { 0 };
+    let run = |t: usize| p.run_of(t);
     let mut out = vec![0; n];
     let mut start = 0;
     while start < n {

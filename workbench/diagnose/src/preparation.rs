@@ -80,6 +80,16 @@ pub(super) struct Weights {
 }
 
 impl Prepared {
+    /// The recorded run fit sample `t` belongs to (0 for a single run, whose folds are
+    /// fifths of it, not runs).
+    pub fn run_of(&self, t: usize) -> usize {
+        if self.runs > 1 {
+            self.folds.get(t).copied().unwrap_or(0).min(self.runs - 1)
+        } else {
+            0
+        }
+    }
+
     /// The fit samples of each recorded run, in order.
     pub fn run_ranges(&self) -> Vec<std::ops::Range<usize>> {
         let n = self.idx.len();
@@ -479,21 +489,9 @@ pub(super) fn worse_somewhere(
     rows: &[usize],
     o: &Options,
 ) -> Option<(&'static str, usize, f64)> {
-    let nf = p.runs.max(1);
-    let run = |t: usize| if nf > 1 { p.folds.get(t).copied().unwrap_or(0).min(nf - 1) } else { 0 };
     let worse = |w: &dyn Fn(usize) -> f64, err: &dyn Fn(&[Vec<f32>], usize) -> f64| {
-        let (mut e0, mut e1, mut n) = (vec![0.0; nf], vec![0.0; nf], vec![0usize; nf]);
-        for &t in rows {
-            let f = run(t);
-            e0[f] += w(t) * err(before, t).powi(2);
-            e1[f] += w(t) * err(after, t).powi(2);
-            n[f] += 1;
-        }
-        (0..nf)
-            .find(|&f| {
-                e1[f] > WORSE * WORSE * e0[f] && e1[f] - e0[f] > o.min_reduction_of_noise * n[f] as f64
-            })
-            .map(|f| (f, (e1[f] / e0[f].max(1e-300)).sqrt()))
+        let by_run = worse_by_run(p, rows, o, w, (&|t| err(before, t), &|t| err(after, t)));
+        by_run.into_iter().enumerate().find_map(|(f, k)| k.map(|k| (f, k)))
     };
     let fitted = (0..p.meas.len()).find_map(|c| {
         let (name, _) = p.noise[c];
@@ -505,6 +503,34 @@ pub(super) fn worse_somewhere(
                 .map(|(f, k)| (pw.power.channel.name(), f, k))
         })
     })
+}
+
+/// Per recorded run (one for a single run): the RMSE ratio of the errors `after` to
+/// `before` (weighted by `w`, on the fit samples `rows`) where it exceeds [`WORSE`] by
+/// more than a chance fit of the noise changes ([`worse_somewhere`]'s test); `None`
+/// where the run is not made worse.
+pub(super) fn worse_by_run(
+    p: &Prepared,
+    rows: &[usize],
+    o: &Options,
+    w: &dyn Fn(usize) -> f64,
+    (before, after): (&dyn Fn(usize) -> f64, &dyn Fn(usize) -> f64),
+) -> Vec<Option<f64>> {
+    let nf = p.runs.max(1);
+    let (mut e0, mut e1, mut n) = (vec![0.0; nf], vec![0.0; nf], vec![0usize; nf]);
+    for &t in rows {
+        let f = p.run_of(t);
+        e0[f] += w(t) * before(t).powi(2);
+        e1[f] += w(t) * after(t).powi(2);
+        n[f] += 1;
+    }
+    (0..nf)
+        .map(|f| {
+            let worse =
+                e1[f] > WORSE * WORSE * e0[f] && e1[f] - e0[f] > o.min_reduction_of_noise * n[f] as f64;
+            worse.then(|| (e1[f] / e0[f].max(1e-300)).sqrt())
+        })
+        .collect()
 }
 
 /// Root-mean-square of `m - s` on the samples `idx`.
