@@ -41,7 +41,7 @@ use super::library::ParamSpec;
 use super::preparation::{prepare, Prepared};
 use super::refit::{confirm, refit, refit_alone, with_held, Fit, Held};
 use super::scan::scan_valleys;
-use super::selection::{greedy, next_leaders, refit_list, score_effects};
+use super::selection::{close_runners_up, greedy, next_leaders, refit_list, score_effects};
 use super::sensitivities::{sensitivities, Sensitivities};
 use super::uncertainty::{parameter_std, Spread};
 use super::verdict::{
@@ -519,10 +519,9 @@ fn stages(
     let mut next = {
         let ranking = rank(&cands);
         let ev = evidence(twin, (&p, &s, o), &cands, &fits, set.as_ref(), &ranking);
-        if ranking.iter().any(|c| ev.counts(c)) {
-            Vec::new()
-        } else {
-            next_leaders(&cands, &fits, o)
+        match ranking.iter().find(|c| ev.counts(c)) {
+            Some(lead) => close_runners_up(&cands, &fits, lead.reduction()),
+            None => next_leaders(&cands, &fits, o),
         }
     };
     if !next.is_empty() {
