@@ -28,6 +28,7 @@
 
 use std::sync::Arc;
 
+use model_core::table::locate;
 use model_core::{Channel, Effects, SetPoints};
 use simrod_io::datadir::{ModelData, ParamLine};
 
@@ -320,15 +321,11 @@ fn visited(d: &ModelData, file: &str, axis: Axis, sps: &[SetPoints]) -> Vec<usiz
             let nx = x.len();
             let mut hit = vec![false; nx * y.len()];
             let (mut hx, mut hy) = (vec![false; nx], vec![false; y.len()]);
-            for sp in sps {
-                let load = match axis {
-                    Axis::Load(i) => sp.load_pct[i],
-                    _ => 0.5 * (sp.load_pct[0] + sp.load_pct[1]),
-                };
+            for (thr, load) in sps.iter().filter_map(|sp| query(axis, sp)) {
                 hx.iter_mut().for_each(|h| *h = false);
                 hy.iter_mut().for_each(|h| *h = false);
-                near(x, sp.throttle_pct.clamp(-100.0, 100.0), &mut hx);
-                near(y, load.clamp(-100.0, 100.0), &mut hy);
+                near(x, thr, &mut hx);
+                near(y, load, &mut hy);
                 for (iy, _) in hy.iter().enumerate().filter(|(_, h)| **h) {
                     for (ix, _) in hx.iter().enumerate().filter(|(_, h)| **h) {
                         hit[iy * nx + ix] = true;
@@ -338,6 +335,61 @@ fn visited(d: &ModelData, file: &str, axis: Axis, sps: &[SetPoints]) -> Vec<usiz
             hit.iter().enumerate().filter(|(_, h)| **h).map(|(i, _)| i).collect()
         }
     }
+}
+
+/// Where the model's step reads a 2-D map of `axis` at set points `sp`: (throttle, load)
+/// as it takes them, each finite or 0 and clamped to ±100 %, the load of
+/// [`Axis::LoadMean`] the mean of the clamped two. `None` for a map not read at set points.
+fn query(axis: Axis, sp: &SetPoints) -> Option<(f32, f32)> {
+    let pct = |v: f32| if v.is_finite() { v.clamp(-100.0, 100.0) } else { 0.0 };
+    let load = match axis {
+        Axis::Load(i) => pct(*sp.load_pct.get(i)?),
+        Axis::LoadMean => 0.5 * (pct(sp.load_pct[0]) + pct(sp.load_pct[1])),
+        Axis::One { .. } | Axis::Scalar => return None,
+    };
+    Some((pct(sp.throttle_pct), load))
+}
+
+/// Per run of a campaign (`segments`: its samples), which values of 2-D map `file` the
+/// model reads at the runs' set points ([`query`]): the cell corners [`locate`] finds on
+/// each axis. A node a run never
+/// reads leaves that run's simulation bit for bit as it was, so its response needs only
+/// the runs that read it. `None` for a map read at a state (1-D maps) or a scalar.
+fn read_by_run(
+    d: &ModelData,
+    file: &str,
+    axis: Axis,
+    sps: &[SetPoints],
+    segments: &[usize],
+) -> Option<Vec<Vec<bool>>> {
+    let (x, y) = grid(d, file)?;
+    let (nx, ny) = (x.len(), y.len());
+    if sps.len() != segments.iter().sum::<usize>() || nx == 0 || ny == 0 {
+        return None;
+    }
+    let mut out = Vec::with_capacity(segments.len());
+    let mut at = 0;
+    for &n in segments {
+        let mut read = vec![false; nx * ny];
+        let mut last = None;
+        for sp in &sps[at..at + n] {
+            let q = query(axis, sp)?;
+            if last == Some(q) {
+                continue;
+            }
+            last = Some(q);
+            let (ix, _) = locate(x, q.0);
+            let (iy, _) = locate(y, q.1);
+            for (r, c) in [(iy, ix), (iy, ix + 1), (iy + 1, ix), (iy + 1, ix + 1)] {
+                if r < ny && c < nx {
+                    read[r * nx + c] = true;
+                }
+            }
+        }
+        at += n;
+        out.push(read);
+    }
+    Some(out)
 }
 
 /// A map's nodes in the regression: which values, and the step each column is in.
@@ -616,11 +668,22 @@ pub(super) fn correct(inp: &Inputs) -> Option<Empirical> {
     // One simulation per visited node of the screened maps.
     let jobs: Vec<(usize, usize)> =
         chosen.iter().flat_map(|&m| (0..maps[m].nodes.len()).map(move |k| (m, k))).collect();
+    let (sps, segments) = (twin.set_points(), twin.segments());
+    let reads: Vec<Option<Vec<Vec<bool>>>> =
+        chosen.iter().map(|&m| read_by_run(&base, maps[m].file, maps[m].axis, &sps, &segments)).collect();
     let runs = run_each(&jobs, inp.o, |&(m, k)| {
         let mut one = vec![0.0; maps[m].nodes.len()];
         one[k] = 1.0;
         let d = Arc::new(corrected(&base, &[&maps[m]], &one));
-        twin.run_data(&d, &inp.fx, p.stride)
+        let slot = chosen.iter().position(|c| *c == m);
+        match slot.and_then(|s| reads[s].as_ref()) {
+            Some(by_run) => {
+                let only: Vec<bool> =
+                    by_run.iter().map(|r| r.get(maps[m].nodes[k]).copied().unwrap_or(true)).collect();
+                twin.run_data_in(&d, (&inp.fx, p.stride), &only, &b.sim0)
+            }
+            None => twin.run_data(&d, &inp.fx, p.stride),
+        }
     });
     let mut cols: Vec<Vec<Vec<Vec<f64>>>> = chosen.iter().map(|_| Vec::new()).collect();
     for ((m, _), out) in jobs.iter().zip(runs) {
@@ -1222,6 +1285,55 @@ mod tests {
             visited(&builtin, file, Axis::Scalar, &[sp(0.0)]).is_empty(),
             "a run at rest does not see it"
         );
+    }
+
+    /// A campaign of TP07 with the loads regenerating and motoring: some node of
+    /// load_torque_L is read by one run and not the other; moving it, the run that does
+    /// not read it simulates bit for bit as before, so the response spliced from the base
+    /// (`run_data_in`) is the whole simulation's, while the run that reads it changes.
+    #[test]
+    fn a_node_changes_only_the_runs_that_read_it() {
+        use crate::twin::{profile_inputs, Campaign, RecordedTwin};
+        use model_core::{Builtin, Profile};
+        use simrod_twin::{MeasuredTwin, ModelOptions, RunGrid};
+        let run = |load: f32| {
+            let profile = Profile::builtin(Builtin::TP07, 0.7, load).expect("a built-in profile");
+            let inputs = profile_inputs(&profile, 1000, 24.0);
+            let n = inputs.len();
+            let grid = RunGrid {
+                time_s: (0..n).map(|k| k as f64 * 1e-3).collect(),
+                dt_us: 1000,
+                resampled: false,
+                step_note: String::new(),
+                set_points: [vec![], vec![], vec![]],
+                gaps: vec![false; n],
+                data_notes: Vec::new(),
+            };
+            let twin = MeasuredTwin { model: ModelOptions::default(), grid, inputs, measured: Vec::new() };
+            RecordedTwin::with_stated(twin, vec![Channel::TKistlerL, Channel::IDc], vec![None, None])
+        };
+        let runs = vec![run(0.9), run(-0.9)];
+        let twin = Campaign::new(runs).expect("a campaign");
+        let base = twin.data().expect("the built-in data");
+        let file = "load_torque_L.csv";
+        let reads =
+            read_by_run(&base, file, Axis::Load(0), &twin.set_points(), &twin.segments()).expect("a 2-D map");
+        assert_eq!(reads.len(), 2);
+        let node =
+            (0..reads[0].len()).find(|&i| reads[1][i] && !reads[0][i]).expect("a node only run 2 reads");
+        let m = MapNodes { file, axis: Axis::Load(0), nodes: vec![node], step: 5.0, limit: 10.0 };
+        let d = Arc::new(corrected(&base, &[&m], &[1.0]));
+        let (fx, stride) = (Effects::NONE, 3);
+        let sim0 = twin.run_data(&base, &fx, stride).expect("base");
+        let whole = twin.run_data(&d, &fx, stride).expect("moved");
+        let spliced = twin.run_data_in(&d, (&fx, stride), &[false, true], &sim0).expect("spliced");
+        assert_eq!(spliced, whole, "run 1 does not read the node");
+        let first = twin.segments()[0].div_ceil(stride);
+        let changed = |a: &[Vec<f32>], b: &[Vec<f32>], r: std::ops::Range<usize>| {
+            a.iter().zip(b).any(|(x, y)| x[r.clone()] != y[r.clone()])
+        };
+        assert!(!changed(&whole, &sim0, 0..first), "run 1 unchanged");
+        assert!(changed(&whole, &sim0, first..sim0[0].len()), "run 2 reads the node and changes");
     }
 
     #[test]

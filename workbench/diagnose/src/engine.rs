@@ -108,6 +108,21 @@ pub trait Twin: Sync {
         let _ = (data, fx, stride);
         Err("this twin runs on its own data only".into())
     }
+
+    /// As [`Twin::run_data`], simulating only the runs flagged in `only` ([`Twin::segments`]
+    /// order) and taking the others from `base`: this twin's `run_data` output at the same
+    /// stride and effects on data those runs read the same (a map node a run never reads
+    /// cannot change it). A twin that cannot splice simulates every run.
+    fn run_data_in(
+        &self,
+        data: &Arc<ModelData>,
+        (fx, stride): (&Effects, usize),
+        only: &[bool],
+        base: &[Vec<f32>],
+    ) -> Result<Vec<Vec<f32>>, String> {
+        let _ = (only, base);
+        self.run_data(data, fx, stride)
+    }
 }
 
 /// Every `stride`-th value of `v`, from the first (`v` itself for a stride of 1).

@@ -149,6 +149,18 @@ impl Campaign {
         stride: usize,
         each: impl Fn(&RecordedTwin, Keep) -> Result<Vec<Vec<f32>>, String> + Sync,
     ) -> Result<Vec<Vec<f32>>, String> {
+        self.joined_except(stride, None, each)
+    }
+
+    /// [`Campaign::joined_every`], where `reuse` = `(only, base)` takes the part of each
+    /// run not flagged in `only` from `base` (the same sequence of another simulation)
+    /// instead of simulating it.
+    fn joined_except(
+        &self,
+        stride: usize,
+        reuse: Option<(&[bool], &[Vec<f32>])>,
+        each: impl Fn(&RecordedTwin, Keep) -> Result<Vec<Vec<f32>>, String> + Sync,
+    ) -> Result<Vec<Vec<f32>>, String> {
         use rayon::prelude::*;
         let stride = stride.max(1);
         let mut keeps = Vec::with_capacity(self.runs.len());
@@ -157,8 +169,31 @@ impl Campaign {
             keeps.push(Keep { first: (stride - offset % stride) % stride, stride });
             offset += r.samples();
         }
-        let parts: Vec<Vec<Vec<f32>>> =
-            self.runs.par_iter().zip(keeps).map(|(r, k)| each(r, k)).collect::<Result<_, _>>()?;
+        let mut at = 0;
+        let slices: Vec<(usize, usize)> = self
+            .runs
+            .iter()
+            .zip(&keeps)
+            .map(|(r, k)| {
+                let n = k.count(r.samples());
+                at += n;
+                (at - n, at)
+            })
+            .collect();
+        let taken = |i: usize| match reuse {
+            Some((only, base)) if !only.get(i).copied().unwrap_or(true) => {
+                Some(base.iter().map(|c| c.get(slices[i].0..slices[i].1).map(<[f32]>::to_vec)).collect())
+            }
+            _ => None,
+        };
+        let parts: Vec<Vec<Vec<f32>>> = (0..self.runs.len())
+            .into_par_iter()
+            .map(|i| match taken(i) {
+                Some(Some(part)) => Ok(part),
+                Some(None) => Err(format!("run {}: the base simulation is shorter than the run", i + 1)),
+                None => each(&self.runs[i], keeps[i]),
+            })
+            .collect::<Result<_, _>>()?;
         let mut out: Vec<Vec<f32>> =
             vec![Vec::with_capacity(self.samples().div_ceil(stride)); self.channels().len()];
         for part in parts {
@@ -228,6 +263,16 @@ impl Twin for Campaign {
 
     fn run_data(&self, data: &Arc<ModelData>, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
         self.joined_every(stride, |r, keep| r.run_kept(&r.with_data(data), fx, keep))
+    }
+
+    fn run_data_in(
+        &self,
+        data: &Arc<ModelData>,
+        (fx, stride): (&Effects, usize),
+        only: &[bool],
+        base: &[Vec<f32>],
+    ) -> Result<Vec<Vec<f32>>, String> {
+        self.joined_except(stride, Some((only, base)), |r, keep| r.run_kept(&r.with_data(data), fx, keep))
     }
 }
 
