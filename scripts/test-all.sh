@@ -70,6 +70,9 @@ cargo build --bins --examples
 step "peak memory of compare and diagnose on a 40 MB run (aims: 4x / 8x the file + 200 MB; the 300 MB run: --mb 300)"
 "${CARGO_TARGET_DIR:-target}"/debug/examples/memory --mb 40 --guard
 
+step "diagnose speed, once each in the test profile (aims 1.5 s one run, 5 s five runs; CI guard 5x the aims)"
+"${CARGO_TARGET_DIR:-target}"/debug/examples/diagnose_timing --repeats 1 --guard 5
+
 step "issue 12's blind loop, short: 2 cases on tuning seeds (the proof: --cases 200, seeds from 1,000,000)"
 "${CARGO_TARGET_DIR:-target}"/debug/examples/blind_loop --cases 2 --first 500000
 
