@@ -352,6 +352,30 @@ pub enum MapShape {
 /// Share of a candidate's weighted sensitivity a channel must carry to count as moved.
 pub const MOVES_SHARE: f64 = 0.05;
 
+#[cfg(test)]
+impl Candidate {
+    /// A candidate named `effect` whose linear prediction removes `predicted` of the
+    /// excess, nothing else known: the tests' starting point (`..Candidate::named(…)`).
+    pub(super) fn named(effect: &'static str, predicted: f64) -> Candidate {
+        Candidate {
+            effect,
+            params: Vec::new(),
+            predicted_reduction: predicted,
+            confirmed_reduction: None,
+            energy_after: None,
+            significant: false,
+            channels: Vec::new(),
+            regions: Vec::new(),
+            moves: Vec::new(),
+            leaves_structure: None,
+            drift: None,
+            map_alias: None,
+            refused: None,
+            held: Vec::new(),
+        }
+    }
+}
+
 impl Candidate {
     /// A sensor cause: it moves one channel alone (the measurement chain's effects;
     /// a physical effect moves several channels consistently).

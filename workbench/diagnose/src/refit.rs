@@ -592,22 +592,7 @@ mod tests {
             ci95: (0.0, 0.0),
             unit: "-",
         };
-        let mut cand = Candidate {
-            effect: "differential_friction",
-            params: vec![fp],
-            predicted_reduction: 0.0,
-            confirmed_reduction: None,
-            significant: false,
-            channels: Vec::new(),
-            regions: Vec::new(),
-            moves: Vec::new(),
-            leaves_structure: None,
-            drift: None,
-            map_alias: None,
-            refused: None,
-            held: Vec::new(),
-            energy_after: None,
-        };
+        let mut cand = Candidate { params: vec![fp], ..Candidate::named("differential_friction", 0.0) };
         for (sd, significant) in [(f64::INFINITY, false), (f64::NAN, false), (0.1, true), (3.0, false)] {
             let spread = Spread { std: vec![sd], reported: vec![sd], data: vec![0.0], drift: None };
             confirm(&mut cand, &fit, &spread, &[&sa], &p);

@@ -354,26 +354,6 @@ pub(super) fn refit_list(cands: &[Candidate], selected: &[(&'static str, f64)], 
 mod tests {
     use super::*;
 
-    /// A candidate named `effect` whose linear prediction removes `predicted` of the excess.
-    fn cand(effect: &'static str, predicted: f64) -> Candidate {
-        Candidate {
-            effect,
-            params: Vec::new(),
-            predicted_reduction: predicted,
-            confirmed_reduction: None,
-            energy_after: None,
-            significant: false,
-            channels: Vec::new(),
-            regions: Vec::new(),
-            moves: Vec::new(),
-            leaves_structure: None,
-            drift: None,
-            map_alias: None,
-            refused: None,
-            held: Vec::new(),
-        }
-    }
-
     /// Beside a lead confirmed at 48.7 % (tuning 500,877's SuTMotorEnc lag), a candidate
     /// predicted at 46.5 % (the controller delay) is refitted and one at 30 % is not (it
     /// is beside a lead at 36 %); one already refitted is not, however close, nor one that
@@ -381,16 +361,16 @@ mod tests {
     #[test]
     fn only_unrefitted_candidates_close_to_the_lead_are_refitted() {
         let cands = [
-            cand("sensor_lag", 0.50),
-            cand("controller_delay", 0.465),
-            cand("supply_resistance", 0.30),
-            cand("sensor_delay", 0.49),
+            Candidate::named("sensor_lag", 0.50),
+            Candidate::named("controller_delay", 0.465),
+            Candidate::named("supply_resistance", 0.30),
+            Candidate::named("sensor_delay", 0.49),
         ];
         let done =
             [(0, Fit::fixed(vec![0.03], Vec::new(), 1.0)), (3, Fit::fixed(vec![0.03], Vec::new(), 1.0))];
         assert_eq!(close_runners_up(&cands, &done, 0.487), vec![1]);
         assert_eq!(close_runners_up(&cands, &done, 0.36), vec![1, 2]);
-        let nothing = [cand("sensor_lag", 0.0), cand("controller_delay", 0.0)];
+        let nothing = [Candidate::named("sensor_lag", 0.0), Candidate::named("controller_delay", 0.0)];
         assert!(close_runners_up(&nothing, &[], 0.0).is_empty());
     }
 }

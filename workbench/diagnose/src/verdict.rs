@@ -813,20 +813,12 @@ mod tests {
     #[test]
     fn a_tie_at_all_of_the_excess_goes_to_the_better_fit() {
         let cand = |effect: &'static str, reduction: f64, energy: f64| Candidate {
-            effect,
-            params: Vec::new(),
-            predicted_reduction: reduction,
             confirmed_reduction: Some(reduction),
             energy_after: Some(energy),
             significant: true,
-            channels: Vec::new(),
-            regions: Vec::new(),
             moves: vec!["SuTMotorEnc"],
             leaves_structure: Some(false),
-            drift: None,
-            map_alias: None,
-            refused: None,
-            held: Vec::new(),
+            ..Candidate::named(effect, reduction)
         };
         let names = |r: Vec<Candidate>| r.iter().map(|c| c.effect).collect::<Vec<_>>();
         let (lag, delay) =
@@ -843,20 +835,11 @@ mod tests {
     #[test]
     fn a_partial_lead_is_said_with_its_look_alike() {
         let lead = Candidate {
-            effect: "sensor_lag.sutmotorenc",
-            params: Vec::new(),
-            predicted_reduction: 0.52,
             confirmed_reduction: Some(0.52),
-            energy_after: None,
             significant: true,
-            channels: Vec::new(),
-            regions: Vec::new(),
             moves: vec!["SuTMotorEnc"],
             leaves_structure: Some(true),
-            drift: None,
-            map_alias: None,
-            refused: None,
-            held: Vec::new(),
+            ..Candidate::named("sensor_lag.sutmotorenc", 0.52)
         };
         let group = |first: &'static str, cos: f64| ConfoundedGroup {
             effects: vec![first, "sensor_delay.sutmotorenc"],
@@ -950,20 +933,12 @@ mod tests {
     /// when `leaves_structure`.
     fn supply_candidate(p: &Prepared, energy: f64, leaves_structure: bool) -> Candidate {
         Candidate {
-            effect: "supply_resistance",
-            params: Vec::new(),
-            predicted_reduction: 0.9,
             confirmed_reduction: Some(((p.e0 - energy) / p.excess).clamp(0.0, 1.0)),
             energy_after: Some(energy),
             significant: true,
-            channels: Vec::new(),
-            regions: Vec::new(),
             moves: vec!["V_DC", "I_DC"],
             leaves_structure: Some(leaves_structure),
-            drift: None,
-            map_alias: None,
-            refused: None,
-            held: Vec::new(),
+            ..Candidate::named("supply_resistance", 0.9)
         }
     }
 
