@@ -665,30 +665,33 @@ pub(super) fn correct(inp: &Inputs) -> Option<Empirical> {
     if chosen.is_empty() {
         return None;
     }
-    // One simulation per visited node of the screened maps.
-    let jobs: Vec<(usize, usize)> =
-        chosen.iter().flat_map(|&m| (0..maps[m].nodes.len()).map(move |k| (m, k))).collect();
+    // One simulation per visited node of the screened maps (`slot`: position in
+    // `chosen`), each on the runs that read the node when that is known.
+    let jobs: Vec<(usize, usize)> = chosen
+        .iter()
+        .enumerate()
+        .flat_map(|(slot, &m)| (0..maps[m].nodes.len()).map(move |k| (slot, k)))
+        .collect();
     let (sps, segments) = (twin.set_points(), twin.segments());
     let reads: Vec<Option<Vec<Vec<bool>>>> =
         chosen.iter().map(|&m| read_by_run(&base, maps[m].file, maps[m].axis, &sps, &segments)).collect();
-    let runs = run_each(&jobs, inp.o, |&(m, k)| {
-        let mut one = vec![0.0; maps[m].nodes.len()];
+    let runs = run_each(&jobs, inp.o, |&(slot, k)| {
+        let m = &maps[chosen[slot]];
+        let mut one = vec![0.0; m.nodes.len()];
         one[k] = 1.0;
-        let d = Arc::new(corrected(&base, &[&maps[m]], &one));
-        let slot = chosen.iter().position(|c| *c == m);
-        match slot.and_then(|s| reads[s].as_ref()) {
+        let d = Arc::new(corrected(&base, &[m], &one));
+        match &reads[slot] {
             Some(by_run) => {
                 let only: Vec<bool> =
-                    by_run.iter().map(|r| r.get(maps[m].nodes[k]).copied().unwrap_or(true)).collect();
+                    by_run.iter().map(|r| r.get(m.nodes[k]).copied().unwrap_or(true)).collect();
                 twin.run_data_in(&d, (&inp.fx, p.stride), &only, &b.sim0)
             }
             None => twin.run_data(&d, &inp.fx, p.stride),
         }
     });
     let mut cols: Vec<Vec<Vec<Vec<f64>>>> = chosen.iter().map(|_| Vec::new()).collect();
-    for ((m, _), out) in jobs.iter().zip(runs) {
-        let slot = chosen.iter().position(|c| c == m)?;
-        cols[slot].push(b.diff(&out.ok()?));
+    for ((slot, _), out) in jobs.iter().zip(runs) {
+        cols[*slot].push(b.diff(&out.ok()?));
     }
     let mut maps = maps;
     for (slot, &m) in chosen.iter().enumerate() {

@@ -180,18 +180,15 @@ impl Campaign {
                 (at - n, at)
             })
             .collect();
-        let taken = |i: usize| match reuse {
-            Some((only, base)) if !only.get(i).copied().unwrap_or(true) => {
-                Some(base.iter().map(|c| c.get(slices[i].0..slices[i].1).map(<[f32]>::to_vec)).collect())
-            }
-            _ => None,
-        };
         let parts: Vec<Vec<Vec<f32>>> = (0..self.runs.len())
             .into_par_iter()
-            .map(|i| match taken(i) {
-                Some(Some(part)) => Ok(part),
-                Some(None) => Err(format!("run {}: the base simulation is shorter than the run", i + 1)),
-                None => each(&self.runs[i], keeps[i]),
+            .map(|i| match reuse {
+                Some((only, base)) if !only.get(i).copied().unwrap_or(true) => base
+                    .iter()
+                    .map(|c| c.get(slices[i].0..slices[i].1).map(<[f32]>::to_vec))
+                    .collect::<Option<_>>()
+                    .ok_or_else(|| format!("run {}: the base simulation is shorter than the run", i + 1)),
+                _ => each(&self.runs[i], keeps[i]),
             })
             .collect::<Result<_, _>>()?;
         let mut out: Vec<Vec<f32>> =
