@@ -695,8 +695,9 @@ impl<'a, R: Real> Model<'a, R> {
 /// cap, `r_s |dI/dv| > 1` there (found by the physics plant's conformance check,
 /// `workbench/plant/tests/conformance.rs`). Newton with the analytic slope instead,
 /// from the last step's voltage (the stable, high-voltage root moves little per step),
-/// a fixed number of iterations (same bits everywhere); a fixed-point pass where the
-/// slope is not positive.
+/// a fixed number of iterations (same bits everywhere; fewer once a pass returns its
+/// own input, which all further passes would too); a fixed-point pass where the slope
+/// is not positive.
 #[inline]
 fn busbar_voltage<R: Real>(
     v_s: R,
@@ -729,7 +730,13 @@ fn busbar_voltage<R: Real>(
         let di = di_c - (i_ld[0] + i_ld[1]) / v;
         let g = v - v_s + r_s * i;
         let slope = R::ONE + r_s * di;
-        v = if slope > zero { v - g / slope } else { v_s - r_s * i };
+        let next = if slope > zero { v - g / slope } else { v_s - r_s * i };
+        // A fixed point (`v` is positive here, so equal values are equal bits): every
+        // further pass returns the same `v`.
+        if next == v {
+            break;
+        }
+        v = next;
     }
     v
 }
@@ -742,5 +749,69 @@ fn map2<R: Real>(shared_grid: bool, t: &Table2<'_, R>, thr: Query<R>, load: Quer
         t.eval_loc(thr.loc, load.loc)
     } else {
         t.eval(thr.v, load.v)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`busbar_voltage`] with all eight Newton passes, as before the early stop.
+    fn busbar_all_passes(
+        v_s: f32,
+        r_s: f32,
+        v_last: f32,
+        p_sut: f32,
+        draw: impl Fn(f32) -> ((f32, f32, f32), [f32; 2]),
+    ) -> f32 {
+        let mut v = if v_last > 0.0 { v_last } else { v_s };
+        for _ in 0..8 {
+            let ((i_c, v_dc, p_eff), i_ld) = draw(v);
+            if v.is_nan() || v <= 0.0 {
+                return v_s;
+            }
+            let i = i_c + i_ld[0] + i_ld[1];
+            let di_c = if p_eff != p_sut {
+                i_c / v
+            } else {
+                let den = v_dc - (v - v_dc);
+                if den != 0.0 {
+                    -i_c / den
+                } else {
+                    0.0
+                }
+            };
+            let di = di_c - (i_ld[0] + i_ld[1]) / v;
+            let (g, slope) = (v - v_s + r_s * i, 1.0 + r_s * di);
+            v = if slope > 0.0 { v - g / slope } else { v_s - r_s * i };
+        }
+        v
+    }
+
+    /// Over draws from regenerating to past the connector's cap, supply resistances up to
+    /// ten times the bench's and cold and warm starts, the early stop returns the bits of
+    /// all eight passes.
+    #[test]
+    fn the_busbar_stops_only_at_a_fixed_point() {
+        for k in 0..1201 {
+            let p_sut = -8_000.0 + 15.0 * k as f32 + 0.61;
+            for p_load in [-2_500.0f32, -400.0, 0.0, 900.0, 3_000.0] {
+                let draw = |v: f32| {
+                    let i_ld = if v > 0.0 { [p_load / v, 0.5 * p_load / v] } else { [0.0, 0.0] };
+                    (connector(p_sut, v, 0.0196), i_ld)
+                };
+                for (v_s, r_s) in [(24.0f32, 0.002f32), (24.0, 0.02), (12.0, 0.05), (30.0, 0.2)] {
+                    for v_last in [0.0, v_s, 0.93 * v_s, 0.5 * v_s] {
+                        let got = busbar_voltage(v_s, r_s, v_last, p_sut, draw);
+                        let want = busbar_all_passes(v_s, r_s, v_last, p_sut, draw);
+                        assert_eq!(
+                            got.to_bits(),
+                            want.to_bits(),
+                            "p_sut {p_sut} p_load {p_load} v_s {v_s} r_s {r_s}"
+                        );
+                    }
+                }
+            }
+        }
     }
 }
