@@ -325,16 +325,17 @@ pub struct Items {
 impl Items {
     /// `shapes` with their Gram matrix under the weights `w`; each shape's `j` is kept
     /// weighted (`W j`).
+    /// The products are independent sums: taken side by side (fifty items make 1,275).
     pub fn new(w: &Weights, mut shapes: Vec<Item>) -> Self {
+        use rayon::prelude::*;
         let m = shapes.len();
-        let weighted: Vec<Vec<Vec<f64>>> = shapes.iter().map(|it| weigh(w, &it.j)).collect();
+        let weighted: Vec<Vec<Vec<f64>>> = shapes.par_iter().map(|it| weigh(w, &it.j)).collect();
+        let pairs: Vec<(usize, usize)> = (0..m).flat_map(|p| (0..=p).map(move |q| (p, q))).collect();
+        let dots: Vec<f64> = pairs.par_iter().map(|&(p, q)| dot3(&weighted[p], &shapes[q].j)).collect();
         let mut gram = vec![0.0; m * m];
-        for p in 0..m {
-            for q in 0..=p {
-                let v = dot3(&weighted[p], &shapes[q].j);
-                gram[p * m + q] = v;
-                gram[q * m + p] = v;
-            }
+        for (&(p, q), v) in pairs.iter().zip(dots) {
+            gram[p * m + q] = v;
+            gram[q * m + p] = v;
         }
         for (it, wj) in shapes.iter_mut().zip(weighted) {
             it.j = wj;
