@@ -706,31 +706,9 @@ fn busbar_voltage<R: Real>(
     p_sut: R,
     draw: impl Fn(R) -> ((R, R, R), [R; 2]),
 ) -> R {
-    let zero = R::ZERO;
-    let mut v = if v_last > zero { v_last } else { v_s };
-    for _ in 0..8 {
-        let ((i_c, v_dc, p_eff), i_ld) = draw(v);
-        #[allow(clippy::neg_cmp_op_on_partial_ord)]
-        if !(v > zero) {
-            return v_s;
-        }
-        let i = i_c + i_ld[0] + i_ld[1];
-        // Connector: capped, the current is proportional to v; else from
-        // r i^2 - v i + p = 0, di/dv = i / (2 r i - v) = -i / (v_dc - r i).
-        let di_c = if p_eff != p_sut {
-            i_c / v
-        } else {
-            let den = v_dc - (v - v_dc);
-            if den != zero {
-                -i_c / den
-            } else {
-                zero
-            }
-        };
-        let di = di_c - (i_ld[0] + i_ld[1]) / v;
-        let g = v - v_s + r_s * i;
-        let slope = R::ONE + r_s * di;
-        let next = if slope > zero { v - g / slope } else { v_s - r_s * i };
+    let mut v = if v_last > R::ZERO { v_last } else { v_s };
+    for _ in 0..BUSBAR_PASSES {
+        let Some(next) = busbar_pass(v, (v_s, r_s, p_sut), &draw) else { return v_s };
         // A fixed point (`v` is positive here, so equal values are equal bits): every
         // further pass returns the same `v`.
         if next == v {
@@ -739,6 +717,42 @@ fn busbar_voltage<R: Real>(
         v = next;
     }
     v
+}
+
+/// Most Newton passes of [`busbar_voltage`].
+const BUSBAR_PASSES: usize = 8;
+
+/// One pass of [`busbar_voltage`] from `v`; `None` where `v` is not positive (the
+/// supply's own voltage is then taken).
+#[inline]
+fn busbar_pass<R: Real>(
+    v: R,
+    (v_s, r_s, p_sut): (R, R, R),
+    draw: &impl Fn(R) -> ((R, R, R), [R; 2]),
+) -> Option<R> {
+    let zero = R::ZERO;
+    let ((i_c, v_dc, p_eff), i_ld) = draw(v);
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    if !(v > zero) {
+        return None;
+    }
+    let i = i_c + i_ld[0] + i_ld[1];
+    // Connector: capped, the current is proportional to v; else from
+    // r i^2 - v i + p = 0, di/dv = i / (2 r i - v) = -i / (v_dc - r i).
+    let di_c = if p_eff != p_sut {
+        i_c / v
+    } else {
+        let den = v_dc - (v - v_dc);
+        if den != zero {
+            -i_c / den
+        } else {
+            zero
+        }
+    };
+    let di = di_c - (i_ld[0] + i_ld[1]) / v;
+    let g = v - v_s + r_s * i;
+    let slope = R::ONE + r_s * di;
+    Some(if slope > zero { v - g / slope } else { v_s - r_s * i })
 }
 
 /// A 2-D map at (throttle, load) set points: on the located grid cells when all maps
@@ -756,7 +770,7 @@ fn map2<R: Real>(shared_grid: bool, t: &Table2<'_, R>, thr: Query<R>, load: Quer
 mod tests {
     use super::*;
 
-    /// [`busbar_voltage`] with all eight Newton passes, as before the early stop.
+    /// [`busbar_voltage`] with all its Newton passes, as before the early stop.
     fn busbar_all_passes(
         v_s: f32,
         r_s: f32,
@@ -765,25 +779,11 @@ mod tests {
         draw: impl Fn(f32) -> ((f32, f32, f32), [f32; 2]),
     ) -> f32 {
         let mut v = if v_last > 0.0 { v_last } else { v_s };
-        for _ in 0..8 {
-            let ((i_c, v_dc, p_eff), i_ld) = draw(v);
-            if v.is_nan() || v <= 0.0 {
-                return v_s;
+        for _ in 0..BUSBAR_PASSES {
+            match busbar_pass(v, (v_s, r_s, p_sut), &draw) {
+                Some(next) => v = next,
+                None => return v_s,
             }
-            let i = i_c + i_ld[0] + i_ld[1];
-            let di_c = if p_eff != p_sut {
-                i_c / v
-            } else {
-                let den = v_dc - (v - v_dc);
-                if den != 0.0 {
-                    -i_c / den
-                } else {
-                    0.0
-                }
-            };
-            let di = di_c - (i_ld[0] + i_ld[1]) / v;
-            let (g, slope) = (v - v_s + r_s * i, 1.0 + r_s * di);
-            v = if slope > 0.0 { v - g / slope } else { v_s - r_s * i };
         }
         v
     }

@@ -64,19 +64,19 @@ impl Response {
 /// Set [`Candidate::map_alias`] of every sensor gain or offset the verdict may name
 /// (refitted and significant, or in the `selected` set) that one shape of a map stands
 /// for. Costs one simulation per map and shape needed (and the current model on the
-/// twin's data), none when there is no such candidate.
+/// twin's data) that `memo` does not hold yet, none when there is no such candidate.
 pub(super) fn map_aliases(
     twin: &dyn Twin,
     p: &Prepared,
     s: &Sensitivities,
     o: &Options,
     selected: &[(&'static str, f64)],
-    cands: &mut [Candidate],
+    (cands, memo): (&mut [Candidate], &mut Shapes),
 ) {
     let sensors = sensors(p, s, twin.channels(), cands, selected);
     let Some(base) = twin.data().filter(|_| !sensors.is_empty()) else { return };
     let needed = |shape: MapShape| sensors.iter().any(|x| x.shape == shape);
-    let Some((sim0, responses)) = responses(twin, p, o, &base, needed) else { return };
+    let Some((sim0, responses)) = responses(twin, (p, o), &base, needed, memo) else { return };
     let r: Vec<Vec<f64>> = p
         .meas
         .iter()
@@ -141,42 +141,67 @@ fn sensors(
         .collect()
 }
 
+/// The simulations [`map_aliases`] ran, kept for its next call in the same diagnosis
+/// (after the runners-up are refitted): the same model, data and shapes give the same
+/// bits, so only a shape not yet needed is simulated then.
+#[derive(Default)]
+pub(super) struct Shapes {
+    sim0: Option<Vec<Vec<f32>>>,
+    /// Per map and shape simulated: its response (`None`: the simulation failed).
+    done: Vec<(ShapeOf, Option<Vec<Vec<f64>>>)>,
+}
+
+/// A map file and one of its shapes.
+type ShapeOf = (&'static str, MapShape);
+
 /// The current model on the twin's data `base`, and each map's response to each shape
 /// `needed` (no shift of friction; a scalar's one scale serves for both), one
-/// simulation per map and shape; `None` when the current model does not run on it.
+/// simulation per map and shape not already in `memo`; `None` when the current model
+/// does not run on it.
 fn responses(
     twin: &dyn Twin,
-    p: &Prepared,
-    o: &Options,
+    (p, o): (&Prepared, &Options),
     base: &Arc<ModelData>,
     needed: impl Fn(MapShape) -> bool,
+    memo: &mut Shapes,
 ) -> Option<(Vec<Vec<f32>>, Vec<Response>)> {
-    let mut jobs: Vec<Option<(&'static str, MapShape, bool)>> = vec![None];
+    let mut wanted: Vec<(&'static str, MapShape, bool)> = Vec::new();
     for (file, shift) in map_files() {
         let also_shift = shift == Shift::IsScale;
         if needed(MapShape::Scale) || (also_shift && needed(MapShape::Shift)) {
-            jobs.push(Some((file, MapShape::Scale, also_shift)));
+            wanted.push((file, MapShape::Scale, also_shift));
         }
         if shift == Shift::Own && needed(MapShape::Shift) {
-            jobs.push(Some((file, MapShape::Shift, false)));
+            wanted.push((file, MapShape::Shift, false));
         }
     }
+    let known = |file: &str, shape: MapShape| memo.done.iter().any(|((f, s), _)| *f == file && *s == shape);
+    let mut jobs: Vec<Option<ShapeOf>> = Vec::new();
+    if memo.sim0.is_none() {
+        jobs.push(None);
+    }
+    jobs.extend(wanted.iter().filter(|(f, s, _)| !known(f, *s)).map(|(f, s, _)| Some((*f, *s))));
     let runs = run_each(&jobs, o, |job| match job {
         None => twin.run_data(base, &o.base, p.stride),
-        Some((file, shape, _)) => {
+        Some((file, shape)) => {
             let d = reshaped(base, file, |v, peak| shape.apply(v, peak)).ok_or("no such map")?;
             twin.run_data(&Arc::new(d), &o.base, p.stride)
         }
     });
-    let mut runs = runs.into_iter();
-    let sim0 = runs.next()?.ok()?;
-    let responses = jobs
-        .iter()
-        .skip(1)
-        .zip(runs)
-        .filter_map(|(job, out)| {
-            let (file, shape, also_shift) = (*job)?;
-            Some(Response { file, shape, also_shift, j: response(p, &sim0, &out.ok()?) })
+    let mut outs = Vec::with_capacity(jobs.len());
+    for (job, out) in jobs.into_iter().zip(runs) {
+        match job {
+            None => memo.sim0 = Some(out.ok()?),
+            Some(key) => outs.push((key, out.ok())),
+        }
+    }
+    let sim0 = memo.sim0.clone()?;
+    memo.done.extend(outs.into_iter().map(|(key, out)| (key, out.map(|y| response(p, &sim0, &y)))));
+    let responses = wanted
+        .into_iter()
+        .filter_map(|(file, shape, also_shift)| {
+            let (_, j) = memo.done.iter().find(|((f, s), _)| *f == file && *s == shape)?;
+            Some(Response { file, shape, also_shift, j: j.clone()? })
         })
         .collect();
     Some((sim0, responses))
@@ -219,6 +244,34 @@ mod tests {
     /// A response that carries the channel's residual exactly removes all of it, at the
     /// residual's scale; one that does not move the channel stands for nothing there; one
     /// that also moves a channel whose residual does not follow removes less.
+    #[test]
+    fn a_second_call_simulates_only_new_shapes_and_answers_as_a_fresh_one() {
+        use crate::preparation::prepare;
+        use model_core::{Channel, Effects};
+        let twin = crate::twin::tp07_run(0.7, 0.5, vec![Channel::IDc, Channel::CKistlerL]);
+        let meas: Vec<Vec<f64>> = twin
+            .run(&Effects::NONE)
+            .expect("the twin runs")
+            .iter()
+            .map(|c| c.iter().map(|v| f64::from(*v) * 1.01).collect())
+            .collect();
+        let o = Options { progress: false, ..Options::default() };
+        let p = prepare(&twin, &meas, &o).expect("prepared");
+        let base = twin.data().expect("the built-in data");
+        let view = |r: &[Response]| -> Vec<_> {
+            r.iter().map(|x| (x.file, x.shape, x.also_shift, x.j.clone())).collect()
+        };
+        let mut memo = Shapes::default();
+        responses(&twin, (&p, &o), &base, |s| s == MapShape::Scale, &mut memo).expect("scales");
+        let scales = memo.done.len();
+        let (sim0, both) = responses(&twin, (&p, &o), &base, |_| true, &mut memo).expect("both");
+        let mut fresh = Shapes::default();
+        let (sim0_fresh, alone) = responses(&twin, (&p, &o), &base, |_| true, &mut fresh).expect("fresh");
+        assert_eq!((sim0, view(&both)), (sim0_fresh, view(&alone)), "the same responses, in the same order");
+        assert!(scales > 0 && scales < memo.done.len(), "{scales} scales, then the shifts");
+        assert_eq!(memo.done.len(), fresh.done.len(), "no shape simulated twice");
+    }
+
     #[test]
     fn one_shape_fits_the_channel_it_moves() {
         let r = vec![vec![2.0, -4.0, 6.0], vec![0.0; 3]];

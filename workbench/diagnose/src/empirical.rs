@@ -1315,25 +1315,8 @@ mod tests {
     /// (`run_data_in`) is the whole simulation's, while the run that reads it changes.
     #[test]
     fn a_node_changes_only_the_runs_that_read_it() {
-        use crate::twin::{profile_inputs, Campaign, RecordedTwin};
-        use model_core::{Builtin, Profile};
-        use simrod_twin::{MeasuredTwin, ModelOptions, RunGrid};
-        let run = |load: f32| {
-            let profile = Profile::builtin(Builtin::TP07, 0.7, load).expect("a built-in profile");
-            let inputs = profile_inputs(&profile, 1000, 24.0);
-            let n = inputs.len();
-            let grid = RunGrid {
-                time_s: (0..n).map(|k| k as f64 * 1e-3).collect(),
-                dt_us: 1000,
-                resampled: false,
-                step_note: String::new(),
-                set_points: [vec![], vec![], vec![]],
-                gaps: vec![false; n],
-                data_notes: Vec::new(),
-            };
-            let twin = MeasuredTwin { model: ModelOptions::default(), grid, inputs, measured: Vec::new() };
-            RecordedTwin::with_stated(twin, vec![Channel::TKistlerL, Channel::IDc], vec![None, None])
-        };
+        use crate::twin::{tp07_run, Campaign};
+        let run = |load: f32| tp07_run(0.7, load, vec![Channel::TKistlerL, Channel::IDc]);
         let runs = vec![run(0.9), run(-0.9)];
         let twin = Campaign::new(runs).expect("a campaign");
         let base = twin.data().expect("the built-in data");

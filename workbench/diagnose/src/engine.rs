@@ -32,7 +32,7 @@ use std::sync::Arc;
 use model_core::{Channel, Effects, Params, SetPoints};
 use simrod_io::datadir::ModelData;
 
-use super::alias::map_aliases;
+use super::alias::{map_aliases, Shapes};
 use super::confounding::{confounded_groups, Leaders};
 pub use super::constancy::{Along, Drift};
 use super::dynamics::{choose_dynamics, with_siblings};
@@ -550,7 +550,8 @@ fn stages(
         }
     };
     mark(&fits, &mut cands);
-    map_aliases(twin, &p, &s, o, &selected, &mut cands);
+    let mut shapes = Shapes::default();
+    map_aliases(twin, &p, &s, o, &selected, (&mut cands, &mut shapes));
     let base_structure = base_structure(&p, twin.channels(), twin.dt_s() * p.stride as f64);
     // Refused leaders make room for the next ones: when no refitted candidate counts, the
     // next by predicted reduction get their refit (a true friction ranked fourth, behind
@@ -568,7 +569,7 @@ fn stages(
         let more = confirm_leaders(twin, (&p, &s, o, &held), &next, Vec::new(), &mut cands);
         mark(&more, &mut cands);
         fits.extend(more);
-        map_aliases(twin, &p, &s, o, &selected, &mut cands);
+        map_aliases(twin, &p, &s, o, &selected, (&mut cands, &mut shapes));
     }
     let ranking = rank(&cands);
     let group = Leaders { cands: &cands, lin: &lin, fits: &fits, ranking: &ranking };

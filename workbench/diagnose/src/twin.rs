@@ -338,6 +338,28 @@ pub fn fitted_channels() -> Vec<Channel> {
     model_core::MEASURED.to_vec()
 }
 
+/// A recorded run of TP07 at `throttle` and `load` scales (no measurement: the tests'
+/// twin on a real profile), recording `channels`.
+#[cfg(test)]
+pub(crate) fn tp07_run(throttle: f32, load: f32, channels: Vec<Channel>) -> RecordedTwin {
+    use simrod_twin::{MeasuredTwin, RunGrid};
+    let profile = Profile::builtin(Builtin::TP07, throttle, load).expect("a built-in profile");
+    let inputs = profile_inputs(&profile, 1000, 24.0);
+    let n = inputs.len();
+    let grid = RunGrid {
+        time_s: (0..n).map(|k| k as f64 * 1e-3).collect(),
+        dt_us: 1000,
+        resampled: false,
+        step_note: String::new(),
+        set_points: [vec![], vec![], vec![]],
+        gaps: vec![false; n],
+        data_notes: Vec::new(),
+    };
+    let twin = MeasuredTwin { model: ModelOptions::default(), grid, inputs, measured: Vec::new() };
+    let none = vec![None; channels.len()];
+    RecordedTwin::with_stated(twin, channels, none)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
