@@ -61,7 +61,7 @@ pub mod throttle;
 
 pub use data::Maps;
 pub use effects::Effects;
-pub use model::{Config, ConfigError, Inputs, Model};
+pub use model::{Config, ConfigError, Inputs, Model, Snapshot};
 pub use num::Real;
 #[cfg(feature = "fixed")]
 pub use num::{saturations, Fx, FxWide};

@@ -220,6 +220,10 @@ struct State<R: Real> {
     chain: ChainState<R>,
 }
 
+/// A model's state between two steps ([`Model::snapshot`]); opaque.
+#[derive(Debug, Clone)]
+pub struct Snapshot<R: Real = f32>(State<R>);
+
 /// The twin: maps, coefficients and state.
 #[derive(Debug, Clone)]
 pub struct Model<'a, R: Real = f32> {
@@ -415,6 +419,20 @@ impl<'a, R: Real> Model<'a, R> {
     /// Time reached [µs].
     pub fn t_us(&self) -> u64 {
         self.s.t_us
+    }
+
+    /// Everything the step has changed so far, to continue another model from
+    /// ([`Model::resume`]).
+    pub fn snapshot(&self) -> Snapshot<R> {
+        Snapshot(self.s.clone())
+    }
+
+    /// Continue from `at`, a [`Model::snapshot`] of a model of the same configuration:
+    /// the steps then go on bit for bit as that model's would, as long as the two models'
+    /// maps agree wherever the model the snapshot came from had read them. A run on a map
+    /// changed at one node need only be stepped from where the node is first read.
+    pub fn resume(&mut self, at: &Snapshot<R>) {
+        self.s = at.0.clone();
     }
 
     /// Per-side mechanical parameters in use (after effects).

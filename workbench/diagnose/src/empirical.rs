@@ -350,18 +350,19 @@ fn query(axis: Axis, sp: &SetPoints) -> Option<(f32, f32)> {
     Some((pct(sp.throttle_pct), load))
 }
 
-/// Per run of a campaign (`segments`: its samples), which values of 2-D map `file` the
-/// model reads at the runs' set points ([`query`]): the cell corners [`locate`] finds on
-/// each axis. A node a run never
-/// reads leaves that run's simulation bit for bit as it was, so its response needs only
-/// the runs that read it. `None` for a map read at a state (1-D maps) or a scalar.
+/// Per run of a campaign (`segments`: its samples) and value of 2-D map `file`, the
+/// first step at which the model reads it at the runs' set points ([`query`]: the cell
+/// corners [`locate`] finds on each axis), `None` when the run never does. Until then a
+/// change of the value leaves the run bit for bit as it was, so its response is
+/// simulated from there only ([`Twin::run_data_from`]). `None` for a map read at a
+/// state (1-D maps) or a scalar.
 fn read_by_run(
     d: &ModelData,
     file: &str,
     axis: Axis,
     sps: &[SetPoints],
     segments: &[usize],
-) -> Option<Vec<Vec<bool>>> {
+) -> Option<Vec<Vec<Option<usize>>>> {
     let (x, y) = grid(d, file)?;
     let (nx, ny) = (x.len(), y.len());
     if sps.len() != segments.iter().sum::<usize>() || nx == 0 || ny == 0 {
@@ -370,9 +371,9 @@ fn read_by_run(
     let mut out = Vec::with_capacity(segments.len());
     let mut at = 0;
     for &n in segments {
-        let mut read = vec![false; nx * ny];
+        let mut first = vec![None; nx * ny];
         let mut last = None;
-        for sp in &sps[at..at + n] {
+        for (k, sp) in sps[at..at + n].iter().enumerate() {
             let q = query(axis, sp)?;
             if last == Some(q) {
                 continue;
@@ -382,12 +383,12 @@ fn read_by_run(
             let (iy, _) = locate(y, q.1);
             for (r, c) in [(iy, ix), (iy, ix + 1), (iy + 1, ix), (iy + 1, ix + 1)] {
                 if r < ny && c < nx {
-                    read[r * nx + c] = true;
+                    first[r * nx + c].get_or_insert(k);
                 }
             }
         }
         at += n;
-        out.push(read);
+        out.push(first);
     }
     Some(out)
 }
@@ -657,7 +658,12 @@ pub(super) fn correct(inp: &Inputs) -> Option<Empirical> {
     let base = twin.data()?;
     let every = p.idx.len().div_ceil(SAMPLES).max(1);
     let rows: Vec<usize> = p.idx.iter().copied().step_by(every).collect();
-    let sim0 = twin.run_data(&base, &inp.fx, p.stride).ok()?;
+    // Checkpointed: a node's response is simulated from where a run first reads it.
+    let resumable = twin.checkpointed(&base, &inp.fx, p.stride);
+    let sim0 = match &resumable {
+        Some(r) => r.out(),
+        None => twin.run_data(&base, &inp.fx, p.stride).ok()?,
+    };
     let r: Vec<Vec<f64>> = p
         .meas
         .iter()
@@ -681,27 +687,27 @@ pub(super) fn correct(inp: &Inputs) -> Option<Empirical> {
         return None;
     }
     // One simulation per visited node of the screened maps (`slot`: position in
-    // `chosen`), each on the runs that read the node when that is known.
+    // `chosen`), each run stepped from where it first reads the node when that is known.
     let jobs: Vec<(usize, usize)> = chosen
         .iter()
         .enumerate()
         .flat_map(|(slot, &m)| (0..maps[m].nodes.len()).map(move |k| (slot, k)))
         .collect();
     let (sps, segments) = (twin.set_points(), twin.segments());
-    let reads: Vec<Option<Vec<Vec<bool>>>> =
+    let reads: Vec<Option<Vec<Vec<Option<usize>>>>> =
         chosen.iter().map(|&m| read_by_run(&base, maps[m].file, maps[m].axis, &sps, &segments)).collect();
     let runs = run_each(&jobs, inp.o, |&(slot, k)| {
         let m = &maps[chosen[slot]];
         let mut one = vec![0.0; m.nodes.len()];
         one[k] = 1.0;
         let d = Arc::new(corrected(&base, &[m], &one));
-        match &reads[slot] {
-            Some(by_run) => {
-                let only: Vec<bool> =
-                    by_run.iter().map(|r| r.get(m.nodes[k]).copied().unwrap_or(true)).collect();
-                twin.run_data_in(&d, (&inp.fx, p.stride), &only, &b.sim0)
+        match (&reads[slot], &resumable) {
+            (Some(by_run), Some(from)) => {
+                let first: Vec<Option<usize>> =
+                    by_run.iter().map(|r| r.get(m.nodes[k]).copied().unwrap_or(Some(0))).collect();
+                twin.run_data_from(&d, &inp.fx, from, &first)
             }
-            None => twin.run_data(&d, &inp.fx, p.stride),
+            _ => twin.run_data(&d, &inp.fx, p.stride),
         }
     });
     let mut cols: Vec<Vec<Vec<Vec<f64>>>> = chosen.iter().map(|_| Vec::new()).collect();
@@ -1309,36 +1315,48 @@ mod tests {
         );
     }
 
-    /// A campaign of TP07 with the loads regenerating and motoring: some node of
-    /// load_torque_L is read by one run and not the other; moving it, the run that does
-    /// not read it simulates bit for bit as before, so the response spliced from the base
-    /// (`run_data_in`) is the whole simulation's, while the run that reads it changes.
+    /// A campaign of TP07 with the loads regenerating and motoring (speed channels
+    /// counted over a window, so the recorder's state travels too). A node of
+    /// load_torque_L one run never reads: that run simulates bit for bit as before and
+    /// the other changes. A node a run first reads seconds in: the run resumed from its
+    /// checkpoint before that step is the whole simulation's. Either way the response
+    /// taken from the checkpointed base ([`Twin::run_data_from`]) is the whole one's.
     #[test]
-    fn a_node_changes_only_the_runs_that_read_it() {
+    fn a_node_changes_a_run_only_from_where_it_is_first_read() {
         use crate::twin::{tp07_run, Campaign};
-        let run = |load: f32| tp07_run(0.7, load, vec![Channel::TKistlerL, Channel::IDc]);
-        let runs = vec![run(0.9), run(-0.9)];
-        let twin = Campaign::new(runs).expect("a campaign");
+        let run =
+            |load: f32| tp07_run(0.7, load, vec![Channel::TKistlerL, Channel::IDc, Channel::SuTMotorEnc]);
+        let twin = Campaign::new(vec![run(0.9), run(-0.9)]).expect("a campaign");
         let base = twin.data().expect("the built-in data");
         let file = "load_torque_L.csv";
         let reads =
             read_by_run(&base, file, Axis::Load(0), &twin.set_points(), &twin.segments()).expect("a 2-D map");
         assert_eq!(reads.len(), 2);
-        let node =
-            (0..reads[0].len()).find(|&i| reads[1][i] && !reads[0][i]).expect("a node only run 2 reads");
-        let m = MapNodes { file, axis: Axis::Load(0), nodes: vec![node], step: 5.0, limit: 10.0 };
-        let d = Arc::new(corrected(&base, &[&m], &[1.0]));
+        let nodes = 0..reads[0].len();
+        let only_2 = nodes.clone().find(|&i| reads[1][i].is_some() && reads[0][i].is_none()).expect("a node");
+        let late = nodes.rev().find(|&i| reads[0][i].is_some_and(|k| k > 4_000)).expect("a node read late");
         let (fx, stride) = (Effects::NONE, 3);
+        let from = twin.checkpointed(&base, &fx, stride).expect("checkpoints");
         let sim0 = twin.run_data(&base, &fx, stride).expect("base");
-        let whole = twin.run_data(&d, &fx, stride).expect("moved");
-        let spliced = twin.run_data_in(&d, (&fx, stride), &[false, true], &sim0).expect("spliced");
-        assert_eq!(spliced, whole, "run 1 does not read the node");
-        let first = twin.segments()[0].div_ceil(stride);
+        assert_eq!(from.out(), sim0, "the checkpointed base is the run");
         let changed = |a: &[Vec<f32>], b: &[Vec<f32>], r: std::ops::Range<usize>| {
             a.iter().zip(b).any(|(x, y)| x[r.clone()] != y[r.clone()])
         };
-        assert!(!changed(&whole, &sim0, 0..first), "run 1 unchanged");
-        assert!(changed(&whole, &sim0, first..sim0[0].len()), "run 2 reads the node and changes");
+        let split = twin.segments()[0].div_ceil(stride);
+        for node in [only_2, late] {
+            let m = MapNodes { file, axis: Axis::Load(0), nodes: vec![node], step: 5.0, limit: 10.0 };
+            let d = Arc::new(corrected(&base, &[&m], &[1.0]));
+            let whole = twin.run_data(&d, &fx, stride).expect("moved");
+            let first: Vec<Option<usize>> = reads.iter().map(|r| r[node]).collect();
+            let resumed = twin.run_data_from(&d, &fx, &from, &first).expect("resumed");
+            assert_eq!(resumed, whole, "node {node}, first read {first:?}");
+            if node == only_2 {
+                assert!(!changed(&whole, &sim0, 0..split), "run 1 unchanged");
+                assert!(changed(&whole, &sim0, split..sim0[0].len()), "run 2 reads the node and changes");
+            } else {
+                assert!(changed(&whole, &sim0, 0..split), "run 1 reads the node and changes");
+            }
+        }
     }
 
     #[test]

@@ -43,6 +43,7 @@ use super::refit::{confirm, refit, refit_alone, with_held, Fit, Held};
 use super::scan::scan_valleys;
 use super::selection::{close_runners_up, greedy, next_leaders, refit_list, score_effects};
 use super::sensitivities::{sensitivities, Sensitivities};
+use super::twin::Resumable;
 use super::uncertainty::{parameter_std, Spread};
 use super::verdict::{
     base_structure, conclude, rank, stated, structure_in, table_beats_library, Evidence, Verdict,
@@ -109,19 +110,27 @@ pub trait Twin: Sync {
         Err("this twin runs on its own data only".into())
     }
 
-    /// As [`Twin::run_data`], simulating only the runs flagged in `only` ([`Twin::segments`]
-    /// order) and taking the others from `base`: this twin's `run_data` output at the same
-    /// stride and effects on data those runs read the same (a map node a run never reads
-    /// cannot change it). A twin that cannot splice simulates every run.
-    fn run_data_in(
+    /// The run of `fx` on `data` at `stride` with its state kept along each run, for
+    /// [`Twin::run_data_from`]; `None` for a twin that keeps none.
+    fn checkpointed(&self, data: &Arc<ModelData>, fx: &Effects, stride: usize) -> Option<Resumable> {
+        let _ = (data, fx, stride);
+        None
+    }
+
+    /// As [`Twin::run_data`] on `data` with `base`'s effects and stride, where `data`
+    /// differs from `base`'s data only in values run `i` ([`Twin::segments`] order)
+    /// first reads at its step `first[i]` (`None`: never): each run is `base`'s up to
+    /// its last checkpoint before that step and simulated from there, the same bits as
+    /// simulated whole (a value not yet read cannot have changed anything).
+    fn run_data_from(
         &self,
         data: &Arc<ModelData>,
-        (fx, stride): (&Effects, usize),
-        only: &[bool],
-        base: &[Vec<f32>],
+        fx: &Effects,
+        base: &Resumable,
+        first: &[Option<usize>],
     ) -> Result<Vec<Vec<f32>>, String> {
-        let _ = (only, base);
-        self.run_data(data, fx, stride)
+        let _ = (data, fx, base, first);
+        Err("this twin keeps no checkpoints".into())
     }
 }
 

@@ -110,6 +110,23 @@ impl Twin for RecordedTwin {
     fn run_data(&self, data: &Arc<ModelData>, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
         self.run_kept(&self.with_data(data), fx, Keep { first: 0, stride })
     }
+
+    fn checkpointed(&self, data: &Arc<ModelData>, fx: &Effects, stride: usize) -> Option<Resumable> {
+        Some(Resumable { runs: vec![self.checkpoints(data, fx, Keep { first: 0, stride }).ok()?] })
+    }
+
+    fn run_data_from(
+        &self,
+        data: &Arc<ModelData>,
+        fx: &Effects,
+        base: &Resumable,
+        first: &[Option<usize>],
+    ) -> Result<Vec<Vec<f32>>, String> {
+        match (base.runs.as_slice(), first) {
+            ([b], [f]) => self.resumed(data, fx, (b, *f)),
+            _ => Err("the checkpointed run is not this run's".into()),
+        }
+    }
 }
 
 /// Several recorded runs as one twin: their samples one after another, so every fit is
@@ -142,63 +159,94 @@ impl Campaign {
 }
 
 impl Campaign {
-    /// Every `stride`-th sample of the joined runs, from the first: each run gives the
-    /// samples it holds of that sequence (`keep`), and the runs simulate side by side.
+    /// What each run keeps of the joined sequence's every `stride`-th sample.
+    fn keeps(&self, stride: usize) -> Vec<Keep> {
+        let stride = stride.max(1);
+        let mut offset = 0;
+        self.runs
+            .iter()
+            .map(|r| {
+                let keep = Keep { first: (stride - offset % stride) % stride, stride };
+                offset += r.samples();
+                keep
+            })
+            .collect()
+    }
+
+    /// Every `stride`-th sample of the joined runs, from the first: run `i` gives the
+    /// samples it holds of that sequence (`each(i, run, keep)`), and the runs simulate
+    /// side by side.
     fn joined_every(
         &self,
         stride: usize,
-        each: impl Fn(&RecordedTwin, Keep) -> Result<Vec<Vec<f32>>, String> + Sync,
-    ) -> Result<Vec<Vec<f32>>, String> {
-        self.joined_except(stride, None, each)
-    }
-
-    /// [`Campaign::joined_every`], where `reuse` = `(only, base)` takes the part of each
-    /// run not flagged in `only` from `base` (the same sequence of another simulation)
-    /// instead of simulating it.
-    fn joined_except(
-        &self,
-        stride: usize,
-        reuse: Option<(&[bool], &[Vec<f32>])>,
-        each: impl Fn(&RecordedTwin, Keep) -> Result<Vec<Vec<f32>>, String> + Sync,
+        each: impl Fn(usize, &RecordedTwin, Keep) -> Result<Vec<Vec<f32>>, String> + Sync,
     ) -> Result<Vec<Vec<f32>>, String> {
         use rayon::prelude::*;
-        let stride = stride.max(1);
-        let mut keeps = Vec::with_capacity(self.runs.len());
-        let mut offset = 0;
-        for r in &self.runs {
-            keeps.push(Keep { first: (stride - offset % stride) % stride, stride });
-            offset += r.samples();
-        }
-        let mut at = 0;
-        let slices: Vec<(usize, usize)> = self
-            .runs
-            .iter()
-            .zip(&keeps)
-            .map(|(r, k)| {
-                let n = k.count(r.samples());
-                at += n;
-                (at - n, at)
-            })
-            .collect();
+        let keeps = self.keeps(stride);
         let parts: Vec<Vec<Vec<f32>>> = (0..self.runs.len())
             .into_par_iter()
-            .map(|i| match reuse {
-                Some((only, base)) if !only.get(i).copied().unwrap_or(true) => base
-                    .iter()
-                    .map(|c| c.get(slices[i].0..slices[i].1).map(<[f32]>::to_vec))
-                    .collect::<Option<_>>()
-                    .ok_or_else(|| format!("run {}: the base simulation is shorter than the run", i + 1)),
-                _ => each(&self.runs[i], keeps[i]),
-            })
+            .map(|i| each(i, &self.runs[i], keeps[i]))
             .collect::<Result<_, _>>()?;
-        let mut out: Vec<Vec<f32>> =
-            vec![Vec::with_capacity(self.samples().div_ceil(stride)); self.channels().len()];
-        for part in parts {
-            for (all, p) in out.iter_mut().zip(part) {
-                all.extend(p);
-            }
+        Ok(joined(parts, self.channels().len()))
+    }
+}
+
+/// The runs' parts (`[run][channel][sample]`) one after another per channel.
+fn joined(parts: Vec<Vec<Vec<f32>>>, channels: usize) -> Vec<Vec<f32>> {
+    let n: usize = parts.iter().filter_map(|p| p.first()).map(Vec::len).sum();
+    let mut out: Vec<Vec<f32>> = vec![Vec::with_capacity(n); channels];
+    for part in parts {
+        for (all, p) in out.iter_mut().zip(part) {
+            all.extend(p);
         }
-        Ok(out)
+    }
+    out
+}
+
+/// Steps between the states a checkpointed run keeps ([`Twin::checkpointed`]): 0.5 s
+/// at the bench's 1 kHz, a few hundred kilobytes per minute of run.
+const CHECKPOINT_EVERY: usize = 500;
+
+/// A run of the twin with its state kept along each of its runs ([`Twin::checkpointed`]).
+pub struct Resumable {
+    runs: Vec<simrod_twin::Checkpoints>,
+}
+
+impl Resumable {
+    /// The run's samples, as [`Twin::run_data`] gives them.
+    pub fn out(&self) -> Vec<Vec<f32>> {
+        let channels = self.runs.first().map_or(0, |r| r.out.len());
+        joined(self.runs.iter().map(|r| r.out.clone()).collect(), channels)
+    }
+}
+
+impl RecordedTwin {
+    /// This run on `data` with `fx`, keeping `keep`, its state kept along it.
+    fn checkpoints(
+        &self,
+        data: &Arc<ModelData>,
+        fx: &Effects,
+        keep: Keep,
+    ) -> Result<simrod_twin::Checkpoints, String> {
+        let t = &self.twin;
+        self.with_data(data)
+            .run_checkpointed(t.grid.dt_us, *fx, (&t.inputs, &self.channels), keep, CHECKPOINT_EVERY)
+            .map_err(|e| e.to_string())
+    }
+
+    /// This run on `data` as `base` (its checkpointed run on other data), stepped from
+    /// step `first` (`None`: `data` changes nothing this run reads; `base` as it is).
+    fn resumed(
+        &self,
+        data: &Arc<ModelData>,
+        fx: &Effects,
+        (base, first): (&simrod_twin::Checkpoints, Option<usize>),
+    ) -> Result<Vec<Vec<f32>>, String> {
+        let Some(first) = first else { return Ok(base.out.clone()) };
+        let t = &self.twin;
+        self.with_data(data)
+            .run_resumed(t.grid.dt_us, *fx, &t.inputs, (base, first))
+            .map_err(|e| e.to_string())
     }
 }
 
@@ -216,11 +264,11 @@ impl Twin for Campaign {
     }
 
     fn run(&self, fx: &Effects) -> Result<Vec<Vec<f32>>, String> {
-        self.joined_every(1, |r, keep| r.record(fx, keep))
+        self.joined_every(1, |_, r, keep| r.record(fx, keep))
     }
 
     fn run_every(&self, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
-        self.joined_every(stride, |r, keep| r.record(fx, keep))
+        self.joined_every(stride, |_, r, keep| r.record(fx, keep))
     }
 
     fn hold_physics(&self, fx: &Effects) -> Result<(), String> {
@@ -259,17 +307,28 @@ impl Twin for Campaign {
     }
 
     fn run_data(&self, data: &Arc<ModelData>, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
-        self.joined_every(stride, |r, keep| r.run_kept(&r.with_data(data), fx, keep))
+        self.joined_every(stride, |_, r, keep| r.run_kept(&r.with_data(data), fx, keep))
     }
 
-    fn run_data_in(
+    fn checkpointed(&self, data: &Arc<ModelData>, fx: &Effects, stride: usize) -> Option<Resumable> {
+        use rayon::prelude::*;
+        let keeps = self.keeps(stride);
+        let runs: Result<Vec<_>, String> =
+            self.runs.par_iter().zip(keeps).map(|(r, keep)| r.checkpoints(data, fx, keep)).collect();
+        Some(Resumable { runs: runs.ok()? })
+    }
+
+    fn run_data_from(
         &self,
         data: &Arc<ModelData>,
-        (fx, stride): (&Effects, usize),
-        only: &[bool],
-        base: &[Vec<f32>],
+        fx: &Effects,
+        base: &Resumable,
+        first: &[Option<usize>],
     ) -> Result<Vec<Vec<f32>>, String> {
-        self.joined_except(stride, Some((only, base)), |r, keep| r.run_kept(&r.with_data(data), fx, keep))
+        if base.runs.len() != self.runs.len() || first.len() != self.runs.len() {
+            return Err("the checkpointed run is not this campaign's".into());
+        }
+        self.joined_every(1, |i, r, _| r.resumed(data, fx, (&base.runs[i], first[i])))
     }
 }
 

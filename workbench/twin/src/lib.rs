@@ -19,7 +19,7 @@ use std::sync::Arc;
 
 use model_core::{
     Builtin, Channel, Config, CouplingStiffness, Effects, Inputs, Maps, Model, Params, ProfileSet, RateSet,
-    SpeedTarget,
+    Snapshot, SpeedTarget,
 };
 
 pub use measured::{
@@ -98,7 +98,7 @@ impl ModelOptions {
     }
 
     /// Run the twin over `inputs` (one step each) and return `channels` as the bench
-    /// records them: the only loop that steps the model for an analysis.
+    /// records them ([`drive`]).
     pub fn run(
         &self,
         dt_us: u32,
@@ -121,10 +121,78 @@ impl ModelOptions {
     ) -> Result<Vec<Vec<f32>>, TwinError> {
         let mut model = self.model(dt_us, effects)?;
         let mut rec = self.sensors.recorder(channels, f64::from(dt_us) * 1e-6, inputs.len(), keep);
-        for inp in inputs {
-            let o = model.step(inp);
-            rec.record(|c| o.get(c));
-        }
+        drive(&mut model, &mut rec, inputs, 0, None);
         Ok(rec.finish())
+    }
+
+    /// As [`ModelOptions::run_kept`], keeping the model's state every `every` steps:
+    /// the run can then be taken up again from there on other data
+    /// ([`ModelOptions::run_resumed`]).
+    pub fn run_checkpointed(
+        &self,
+        dt_us: u32,
+        effects: Effects,
+        (inputs, channels): (&[Inputs], &[Channel]),
+        keep: Keep,
+        every: usize,
+    ) -> Result<Checkpoints, TwinError> {
+        let mut model = self.model(dt_us, effects)?;
+        let mut rec = self.sensors.recorder(channels, f64::from(dt_us) * 1e-6, inputs.len(), keep);
+        let mut at = Vec::with_capacity(inputs.len() / every.max(1) + 1);
+        drive(&mut model, &mut rec, inputs, 0, Some((every.max(1), &mut at)));
+        Ok(Checkpoints { out: rec.output(), rec, at })
+    }
+
+    /// The run of `from` (same step, effects, inputs and channels) on this model's data,
+    /// stepped only from its last checkpoint at or before step `first_read`: the same
+    /// bits as the whole run when this data differs from that run's only in values the
+    /// model first reads at step `first_read` or later.
+    pub fn run_resumed(
+        &self,
+        dt_us: u32,
+        effects: Effects,
+        inputs: &[Inputs],
+        (from, first_read): (&Checkpoints, usize),
+    ) -> Result<Vec<Vec<f32>>, TwinError> {
+        let mut model = self.model(dt_us, effects)?;
+        let Some((step, snap, mark)) = from.at.iter().rev().find(|(k, _, _)| *k <= first_read) else {
+            return Err(TwinError::Model("no checkpoint before the first step".into()));
+        };
+        model.resume(snap);
+        let mut rec = from.rec.resumed(mark);
+        drive(&mut model, &mut rec, inputs, *step, None);
+        Ok(rec.finish())
+    }
+}
+
+/// A run with the model's state kept along it ([`ModelOptions::run_checkpointed`]).
+pub struct Checkpoints {
+    /// The run's kept samples, as [`ModelOptions::run_kept`] returns them.
+    pub out: Vec<Vec<f32>>,
+    rec: sensors::Recorder,
+    at: Vec<Checkpoint>,
+}
+
+/// The model and the recording before a step (the step's index first).
+type Checkpoint = (usize, Snapshot, sensors::Mark);
+
+/// Step `model` over `inputs` from step `from`, recording into `rec`: the only loop that
+/// steps the model for an analysis. With `checkpoints = (every, at)`, the state before
+/// every `every`-th step is kept in `at`.
+fn drive(
+    model: &mut Model<'_>,
+    rec: &mut sensors::Recorder,
+    inputs: &[Inputs],
+    from: usize,
+    mut checkpoints: Option<(usize, &mut Vec<Checkpoint>)>,
+) {
+    for (k, inp) in inputs.iter().enumerate().skip(from) {
+        if let Some((every, at)) = checkpoints.as_mut() {
+            if k % *every == 0 {
+                at.push((k, model.snapshot(), rec.mark()));
+            }
+        }
+        let o = model.step(inp);
+        rec.record(|c| o.get(c));
     }
 }

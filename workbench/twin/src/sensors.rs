@@ -144,6 +144,15 @@ enum Track {
     Counted { channel: Channel, angle: Vec<f64>, prev: f64 },
 }
 
+/// Where a [`Recorder`] stood ([`Recorder::mark`]): its step, its next kept sample, and
+/// per track the length recorded and (encoders) the last speed.
+#[derive(Debug, Clone)]
+pub struct Mark {
+    step: usize,
+    next: usize,
+    tracks: Vec<(usize, f64)>,
+}
+
 /// Records a run step by step ([`SensorModel::recorder`]).
 pub struct Recorder {
     tracks: Vec<Track>,
@@ -180,20 +189,61 @@ impl Recorder {
         self.step += 1;
     }
 
-    /// The kept samples of every channel, in the order of the recorder's channels.
-    pub fn finish(self) -> Vec<Vec<f32>> {
-        let (half, dt, keep) = (self.half, self.dt, self.keep);
+    /// Where the recording stands: what [`Recorder::resumed`] needs to take it up again
+    /// from here.
+    pub fn mark(&self) -> Mark {
+        let tracks = self
+            .tracks
+            .iter()
+            .map(|t| match t {
+                Track::Plain { kept, .. } => (kept.len(), 0.0),
+                Track::Counted { angle, prev, .. } => (angle.len(), *prev),
+            })
+            .collect();
+        Mark { step: self.step, next: self.next, tracks }
+    }
+
+    /// A recorder holding what this one had recorded at `at` (a [`Recorder::mark`] of
+    /// this recording, which has gone on since): records the same from there.
+    pub fn resumed(&self, at: &Mark) -> Recorder {
+        let tracks = self
+            .tracks
+            .iter()
+            .zip(&at.tracks)
+            .map(|(t, &(len, was))| match t {
+                Track::Plain { channel, kept } => {
+                    let mut k = Vec::with_capacity(kept.capacity());
+                    k.extend_from_slice(&kept[..len.min(kept.len())]);
+                    Track::Plain { channel: *channel, kept: k }
+                }
+                Track::Counted { channel, angle, .. } => {
+                    let mut a = Vec::with_capacity(angle.capacity());
+                    a.extend_from_slice(&angle[..len.min(angle.len())]);
+                    Track::Counted { channel: *channel, angle: a, prev: was }
+                }
+            })
+            .collect();
+        Recorder { tracks, half: self.half, dt: self.dt, keep: self.keep, step: at.step, next: at.next }
+    }
+
+    /// The kept samples of every channel so far, as [`Recorder::finish`] gives them.
+    pub fn output(&self) -> Vec<Vec<f32>> {
         let n = self.step;
         self.tracks
-            .into_iter()
+            .iter()
             .map(|t| match t {
-                Track::Plain { kept, .. } => kept,
-                Track::Counted { angle, .. } => (keep.first..n)
-                    .step_by(keep.stride.max(1))
-                    .map(|k| window_at(&angle, k, half, dt))
+                Track::Plain { kept, .. } => kept.clone(),
+                Track::Counted { angle, .. } => (self.keep.first..n)
+                    .step_by(self.keep.stride.max(1))
+                    .map(|k| window_at(angle, k, self.half, self.dt))
                     .collect(),
             })
             .collect()
+    }
+
+    /// The kept samples of every channel, in the order of the recorder's channels.
+    pub fn finish(self) -> Vec<Vec<f32>> {
+        self.output()
     }
 }
 
