@@ -12,10 +12,11 @@ use super::preparation::{energy, region_errors, rmse, run_all, Prepared};
 use super::sensitivities::{check_shape, Sensitivities};
 use super::uncertainty::Spread;
 
-/// Most Levenberg–Marquardt iterations (each: one Jacobian, up to [`DAMPING_TRIES`] steps).
+/// Most Levenberg–Marquardt iterations (each: one Jacobian, up to 2 × [`DAMPING_PAIRS`] steps).
 const MAX_ITERATIONS: usize = 8;
-/// Damping increases tried per iteration before giving up.
-const DAMPING_TRIES: usize = 6;
+/// Damping increases tried per iteration before giving up, two at a time
+/// ([`damped_step`]): six tries.
+const DAMPING_PAIRS: usize = 3;
 
 /// A refit on the simulator.
 pub(super) struct Fit {
@@ -299,34 +300,47 @@ fn normal_equations(p: &Prepared, jac: &[Vec<Vec<f64>>], sim: &[Vec<f32>]) -> (V
 /// The system is solved in each parameter's own scale (its sensitivity step), so the
 /// solver's ridge, relative to the largest diagonal, does not swamp a parameter whose
 /// unit makes its information small (a stiffness in N m/rad beside a resistance in Ω).
+///
+/// Two dampings are simulated side by side (most tries fail: a refit starts from its
+/// grid's or its linear fit's best point, and ends on six failures), then judged in turn
+/// as one by one: the same steps, the same result.
 fn damped_step(pb: &Problem, g: &[f64], b: &[f64], lambda: &mut f64, st: &mut State) -> Option<bool> {
-    let n = b.len();
     let scale: Vec<f64> = pb.specs.iter().map(|s| s.delta).collect();
     let (g, b) = in_scale(g, b, &scale);
-    for _ in 0..DAMPING_TRIES {
+    let candidate = |lambda: f64| -> Option<Vec<f64>> {
+        let n = b.len();
         let mut gl = g.clone();
         for i in 0..n {
-            gl[i * n + i] *= 1.0 + *lambda;
+            gl[i * n + i] *= 1.0 + lambda;
         }
         let step = solve_spd(&gl, &b, 1e-12)?;
         let mut cand: Vec<f64> =
             st.theta.iter().zip(step.iter().zip(&scale)).map(|(a, (d, h))| a + d * h).collect();
         pb.clamp(&mut cand);
-        let Some(s2) = pb.run(&cand) else { return Some(false) };
-        let e2 = energy(pb.p, &s2);
-        if std::env::var_os("SIMROD_DIAG_DEBUG").is_some() {
-            eprintln!(
-                "  LM {}: theta {:?} e {:.3} -> cand {cand:?} e2 {e2:.3} lambda {:e}",
-                pb.specs[0].effect, st.theta, st.energy, *lambda
-            );
+        Some(cand)
+    };
+    for _ in 0..DAMPING_PAIRS {
+        let first = candidate(*lambda)?;
+        let second = candidate(*lambda * 10.0);
+        let (s1, s2) = rayon::join(|| pb.run(&first), || second.as_ref().and_then(|c| pb.run(c)));
+        for (cand, sim) in [(Some(first), s1), (second, s2)] {
+            let cand = cand?;
+            let Some(sim) = sim else { return Some(false) };
+            let e2 = energy(pb.p, &sim);
+            if std::env::var_os("SIMROD_DIAG_DEBUG").is_some() {
+                eprintln!(
+                    "  LM {}: theta {:?} e {:.3} -> cand {cand:?} e2 {e2:.3} lambda {:e}",
+                    pb.specs[0].effect, st.theta, st.energy, *lambda
+                );
+            }
+            if e2 < st.energy {
+                let rel = (st.energy - e2) / st.energy.max(1e-300);
+                *st = State { theta: cand, sim, energy: e2 };
+                *lambda = (*lambda * 0.3).max(1e-9);
+                return Some(rel > 1e-6);
+            }
+            *lambda *= 10.0;
         }
-        if e2 < st.energy {
-            let rel = (st.energy - e2) / st.energy.max(1e-300);
-            *st = State { theta: cand, sim: s2, energy: e2 };
-            *lambda = (*lambda * 0.3).max(1e-9);
-            return Some(rel > 1e-6);
-        }
-        *lambda *= 10.0;
     }
     Some(false)
 }
