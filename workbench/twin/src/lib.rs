@@ -98,7 +98,7 @@ impl ModelOptions {
     }
 
     /// Run the twin over `inputs` (one step each) and return `channels` as the bench
-    /// records them ([`drive`]).
+    /// records them (through the one stepping loop, `drive`).
     pub fn run(
         &self,
         dt_us: u32,
