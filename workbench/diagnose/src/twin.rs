@@ -110,23 +110,6 @@ impl Twin for RecordedTwin {
     fn run_data(&self, data: &Arc<ModelData>, fx: &Effects, stride: usize) -> Result<Vec<Vec<f32>>, String> {
         self.run_kept(&self.with_data(data), fx, Keep { first: 0, stride })
     }
-
-    fn checkpointed(&self, data: &Arc<ModelData>, fx: &Effects, stride: usize) -> Option<Resumable> {
-        Some(Resumable { runs: vec![self.checkpoints(data, fx, Keep { first: 0, stride }).ok()?] })
-    }
-
-    fn run_data_from(
-        &self,
-        data: &Arc<ModelData>,
-        fx: &Effects,
-        base: &Resumable,
-        first: &[Option<usize>],
-    ) -> Result<Vec<Vec<f32>>, String> {
-        match (base.runs.as_slice(), first) {
-            ([b], [f]) => self.resumed(data, fx, (b, *f)),
-            _ => Err("the checkpointed run is not this run's".into()),
-        }
-    }
 }
 
 /// Several recorded runs as one twin: their samples one after another, so every fit is

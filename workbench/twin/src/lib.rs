@@ -121,7 +121,7 @@ impl ModelOptions {
     ) -> Result<Vec<Vec<f32>>, TwinError> {
         let mut model = self.model(dt_us, effects)?;
         let mut rec = self.sensors.recorder(channels, f64::from(dt_us) * 1e-6, inputs.len(), keep);
-        drive(&mut model, &mut rec, inputs, 0, None);
+        drive(&mut model, &mut rec, inputs);
         Ok(rec.finish())
     }
 
@@ -138,8 +138,12 @@ impl ModelOptions {
     ) -> Result<Checkpoints, TwinError> {
         let mut model = self.model(dt_us, effects)?;
         let mut rec = self.sensors.recorder(channels, f64::from(dt_us) * 1e-6, inputs.len(), keep);
-        let mut at = Vec::with_capacity(inputs.len() / every.max(1) + 1);
-        drive(&mut model, &mut rec, inputs, 0, Some((every.max(1), &mut at)));
+        let every = every.max(1);
+        let mut at = Vec::with_capacity(inputs.len() / every + 1);
+        for (c, chunk) in inputs.chunks(every).enumerate() {
+            at.push((c * every, model.snapshot(), rec.mark()));
+            drive(&mut model, &mut rec, chunk);
+        }
         Ok(Checkpoints { out: rec.output(), rec, at })
     }
 
@@ -160,14 +164,15 @@ impl ModelOptions {
         };
         model.resume(snap);
         let mut rec = from.rec.resumed(mark);
-        drive(&mut model, &mut rec, inputs, *step, None);
+        drive(&mut model, &mut rec, inputs.get(*step..).unwrap_or_default());
         Ok(rec.finish())
     }
 }
 
 /// A run with the model's state kept along it ([`ModelOptions::run_checkpointed`]).
 pub struct Checkpoints {
-    /// The run's kept samples, as [`ModelOptions::run_kept`] returns them.
+    /// The run's kept samples, as [`ModelOptions::run_kept`] returns them (derivable from
+    /// the recording, kept: every response a run does not read copies it).
     pub out: Vec<Vec<f32>>,
     rec: sensors::Recorder,
     at: Vec<Checkpoint>,
@@ -176,22 +181,11 @@ pub struct Checkpoints {
 /// The model and the recording before a step (the step's index first).
 type Checkpoint = (usize, Snapshot, sensors::Mark);
 
-/// Step `model` over `inputs` from step `from`, recording into `rec`: the only loop that
-/// steps the model for an analysis. With `checkpoints = (every, at)`, the state before
-/// every `every`-th step is kept in `at`.
-fn drive(
-    model: &mut Model<'_>,
-    rec: &mut sensors::Recorder,
-    inputs: &[Inputs],
-    from: usize,
-    mut checkpoints: Option<(usize, &mut Vec<Checkpoint>)>,
-) {
-    for (k, inp) in inputs.iter().enumerate().skip(from) {
-        if let Some((every, at)) = checkpoints.as_mut() {
-            if k % *every == 0 {
-                at.push((k, model.snapshot(), rec.mark()));
-            }
-        }
+/// Step `model` over `inputs`, recording into `rec`: the only loop that steps the model
+/// for an analysis (a checkpointed run calls it a stretch at a time, so the loop itself
+/// carries nothing for the checkpoints).
+fn drive(model: &mut Model<'_>, rec: &mut sensors::Recorder, inputs: &[Inputs]) {
+    for inp in inputs {
         let o = model.step(inp);
         rec.record(|c| o.get(c));
     }
