@@ -172,7 +172,7 @@ impl Refitted<'_> {
 fn claimed_departure(specs: &[&ParamSpec], values: &[f64], starts: &[f64], i: usize) -> Option<f64> {
     let (cause, unit) = (specs.get(i)?.cause, specs[i].unit);
     let mut largest = (values.get(i)? - starts.get(i)?).abs();
-    for (j, sp) in specs.iter().enumerate().filter(|(_, sp)| sp.cause == cause && sp.unit == unit) {
+    for (j, _) in specs.iter().enumerate().filter(|(_, sp)| sp.cause == cause && sp.unit == unit) {
         largest = largest.max((values.get(j)? - starts.get(j)?).abs());
     }
     Some(largest)
@@ -385,7 +385,9 @@ mod tests {
                 .collect();
             let fitted: Vec<f64> = meas
                 .iter()
-                .map(|m| m.iter().zip(&x).map(|(m, x)| m * x).sum::<f64>() / x.iter().map(|v| v * v).sum::<f64>())
+                .map(|m| {
+                    m.iter().zip(&x).map(|(m, x)| m * x).sum::<f64>() / x.iter().map(|v| v * v).sum::<f64>()
+                })
                 .collect();
             let p = prepared(meas, 1);
             let quiet = vec![0.0; n];

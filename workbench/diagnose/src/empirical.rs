@@ -539,19 +539,27 @@ fn roughness(maps: &[&MapNodes], d: &ModelData) -> Vec<f64> {
 
 /// Held-out error removed with roughness weight `lam` (absolute): the sum over folds of
 /// what a fit without the fold removes on it; and the fit on every fold.
-fn heldout(nm: &Normal, p: &[f64], lam: f64) -> (f64, Vec<f64>) {
-    heldout_damped(nm, p, lam, 1.0)
+fn heldout(nm: &Normal, p: &[f64], lam: f64, guard: &[f64]) -> (f64, Vec<f64>) {
+    heldout_damped(nm, (p, lam, guard), 1.0)
 }
 
-/// As [`heldout`], with every fold's fit taken `alpha` of the way (a damped step).
-fn heldout_damped(nm: &Normal, p: &[f64], lam: f64, alpha: f64) -> (f64, Vec<f64>) {
+/// As [`heldout`], with every fold's fit taken `alpha` of the way (a damped step). The
+/// fits are penalised by the roughness `p` times `lam` and by `guard` ([`guarded`]; empty
+/// for none); what they remove is measured on the unpenalised held-out fold.
+fn heldout_damped(nm: &Normal, (p, lam, guard): (&[f64], f64, &[f64]), alpha: f64) -> (f64, Vec<f64>) {
     let n = nm.n;
     let mut total = 0.0;
+    let penalised = |g: &mut Vec<f64>| {
+        if !guard.is_empty() {
+            g.iter_mut().zip(guard).for_each(|(x, q)| *x += q);
+        }
+    };
     for (gk, bk) in nm.gf.iter().zip(&nm.bf) {
         if bk.iter().all(|v| *v == 0.0) {
             continue;
         }
-        let g: Vec<f64> = nm.g.iter().zip(gk).zip(p).map(|((a, b), q)| a - b + lam * q).collect();
+        let mut g: Vec<f64> = nm.g.iter().zip(gk).zip(p).map(|((a, b), q)| a - b + lam * q).collect();
+        penalised(&mut g);
         let b: Vec<f64> = nm.b.iter().zip(bk).map(|(a, b)| a - b).collect();
         let Some(th) = solve_spd(&g, &b, 1e-9) else { return (f64::NEG_INFINITY, Vec::new()) };
         let mut quad = 0.0;
@@ -562,7 +570,8 @@ fn heldout_damped(nm: &Normal, p: &[f64], lam: f64, alpha: f64) -> (f64, Vec<f64
         }
         total += 2.0 * alpha * th.iter().zip(bk).map(|(a, b)| a * b).sum::<f64>() - alpha * alpha * quad;
     }
-    let g: Vec<f64> = nm.g.iter().zip(p).map(|(a, q)| a + lam * q).collect();
+    let mut g: Vec<f64> = nm.g.iter().zip(p).map(|(a, q)| a + lam * q).collect();
+    penalised(&mut g);
     let th = solve_spd(&g, &nm.b, 1e-9).unwrap_or_else(|| vec![0.0; n]);
     (total, th)
 }
@@ -570,12 +579,12 @@ fn heldout_damped(nm: &Normal, p: &[f64], lam: f64, alpha: f64) -> (f64, Vec<f64
 /// The best roughness weight for a set of columns whose fit stays within `limit` steps
 /// of every node (a linearisation is trusted only so far): (held-out removal,
 /// relative λ, fit).
-fn best_lambda(nm: &Normal, p: &[f64], limit: &[f64]) -> (f64, f64, Vec<f64>) {
+fn best_lambda(nm: &Normal, (p, guard): (&[f64], &[f64]), limit: &[f64]) -> (f64, f64, Vec<f64>) {
     let scale = diag_mean(nm);
     let mut best = (f64::NEG_INFINITY, 0.0, vec![0.0; nm.n]);
     for k in -12..=8 {
         let rel = 10f64.powf(f64::from(k) / 2.0);
-        let (h, th) = heldout(nm, p, rel * scale.max(1e-300));
+        let (h, th) = heldout(nm, p, rel * scale.max(1e-300), guard);
         let within = th.iter().zip(limit).all(|(t, l)| t.abs() <= *l);
         if within && h > best.0 {
             best = (h, rel, th);
@@ -600,6 +609,40 @@ struct TableFit {
     /// The linearised model it was fitted on, and its roughness matrix.
     nm: Normal,
     roughness: Vec<f64>,
+    /// The penalty on changing the channels it must leave as they are ([`guarded`]);
+    /// empty for none.
+    guard: Vec<f64>,
+}
+
+/// How much more a guarded channel's change weighs than its own error in a table fit
+/// ([`guarded`]): enough that the linearised fit changes it tens of times less than
+/// unguarded, not so much that the solve loses the other channels' information.
+const GUARD: f64 = 100.0;
+
+/// Most guarded refits before a table refused for harm is given up.
+const GUARD_ROUNDS: usize = 3;
+
+/// The penalty `GUARD · J_c' W_c J_c`, summed over channels `chans`, on the columns
+/// `cols` (full, row-major): a table fitted with it leaves those channels as the model
+/// has them. From the columns and weights only, not the residual, so every held-out
+/// fold may carry it whole.
+fn guarded(cols: &[&Vec<Vec<f64>>], w: &[Vec<f64>], chans: &[usize]) -> Vec<f64> {
+    let n = cols.len();
+    let mut g = vec![0.0; n * n];
+    if chans.is_empty() {
+        return Vec::new();
+    }
+    for i in 0..n {
+        for j in 0..=i {
+            let v: f64 = chans
+                .iter()
+                .map(|&c| (0..w[c].len()).map(|t| w[c][t] * cols[i][c][t] * cols[j][c][t]).sum::<f64>())
+                .sum();
+            g[i * n + j] = GUARD * v;
+            g[j * n + i] = GUARD * v;
+        }
+    }
+    g
 }
 
 /// What the stage reads.
@@ -885,17 +928,26 @@ fn select(
 ) -> Option<Empirical> {
     use rayon::prelude::*;
     let excess = b.excess;
-    let fit_of = |set: &[usize]| {
+    let guarded_fit = |set: &[usize], keep: &[usize]| {
         let refs: Vec<&Vec<Vec<f64>>> = set.iter().flat_map(|&s| cols[s].iter()).collect();
         let mn: Vec<&MapNodes> = set.iter().map(|&s| maps[s]).collect();
         let nm = b.normal(&refs);
         let pm = roughness(&mn, base);
+        let guard = guarded(&refs, &b.w, keep);
         let limit: Vec<f64> = mn.iter().flat_map(|m| m.nodes.iter().map(|_| m.limit)).collect();
-        let (heldout, lambda, theta) = best_lambda(&nm, &pm, &limit);
-        TableFit { heldout, lambda, theta, nm, roughness: pm }
+        let (heldout, lambda, theta) = best_lambda(&nm, (&pm, &guard), &limit);
+        TableFit { heldout, lambda, theta, nm, roughness: pm, guard }
     };
+    let fit_of = |set: &[usize]| guarded_fit(set, &[]);
     let empty = Normal { n: 0, g: Vec::new(), b: Vec::new(), gf: Vec::new(), bf: Vec::new() };
-    let none = TableFit { heldout: 0.0, lambda: 0.0, theta: Vec::new(), nm: empty, roughness: Vec::new() };
+    let none = TableFit {
+        heldout: 0.0,
+        lambda: 0.0,
+        theta: Vec::new(),
+        nm: empty,
+        roughness: Vec::new(),
+        guard: Vec::new(),
+    };
     let (mut set, mut best): (Vec<usize>, TableFit) = (Vec::new(), none);
     loop {
         // The trials side by side, then the best in order (ties go to the last, as before).
@@ -981,6 +1033,30 @@ fn select(
             }
         }
     }
+    // A table still refused for making a channel worse is fitted again leaving every
+    // channel it made worse as the model has it ([`guarded`]), and those the guarded fit
+    // makes worse then, up to [`GUARD_ROUNDS`] times: the maps correct what they can
+    // without them (a table that trades the flange torques for the supply's voltage is
+    // no correction of either).
+    let mut keep: Vec<usize> = Vec::new();
+    let mut last = if step.refused.is_some() { step.worse() } else { Vec::new() };
+    for _ in 0..GUARD_ROUNDS {
+        let more: Vec<usize> = last.iter().copied().filter(|c| !keep.contains(c)).collect();
+        if more.is_empty() {
+            break;
+        }
+        keep.extend(more);
+        let fit = guarded_fit(&set, &keep);
+        if fit.heldout < GAIN_SHARE * excess {
+            break;
+        }
+        let Some((c, s)) = attempt(&set, &fit) else { break };
+        if s.refused.is_none() {
+            (chosen, step) = (c, s);
+            break;
+        }
+        last = s.worse();
+    }
     let mn: Vec<&MapNodes> = chosen.iter().map(|&s| maps[s]).collect();
     let s = step;
     let summaries = mn.iter().map(|m| summarize(m, base, &s.data)).collect();
@@ -1012,6 +1088,25 @@ struct Step {
     confirmed: f64,
     channels: Vec<ChannelChange>,
     refused: Option<String>,
+    /// The fitted channel (index) the table makes worse, when that is why it is refused.
+    harmed: Option<usize>,
+}
+
+impl Step {
+    /// The channels (indices) it leaves with a larger error than the model had, and the
+    /// one it is refused for harming.
+    fn worse(&self) -> Vec<usize> {
+        let rose = self
+            .channels
+            .iter()
+            .enumerate()
+            .filter(|(_, ch)| ch.rmse_confirmed.is_some_and(|a| a > ch.rmse_before));
+        let mut out: Vec<usize> = rose.map(|(c, _)| c).collect();
+        if let Some(h) = self.harmed.filter(|h| !out.contains(h)) {
+            out.push(h);
+        }
+        out
+    }
 }
 
 /// The fit `f` of columns `refs` (maps `mn`) taken `alpha` of the way: its held-out and
@@ -1028,7 +1123,7 @@ fn confirm(
     let (p, rows, excess, sim0) = (inp.p, &b.rows, b.excess, &b.sim0);
     let theta: Vec<f64> = f.theta.iter().map(|t| alpha * t).collect();
     let nm = &f.nm;
-    let (held, _) = heldout_damped(nm, &f.roughness, f.lambda * diag_mean(nm).max(1e-300), alpha);
+    let (held, _) = heldout_damped(nm, (&f.roughness, f.lambda * diag_mean(nm).max(1e-300), &f.guard), alpha);
     let quad: f64 =
         (0..nm.n).map(|i| (0..nm.n).map(|j| theta[i] * nm.g[i * nm.n + j] * theta[j]).sum::<f64>()).sum();
     let in_sample = (2.0 * theta.iter().zip(&nm.b).map(|(x, y)| x * y).sum::<f64>() - quad) / excess;
@@ -1038,6 +1133,7 @@ fn confirm(
     let after = inp.twin.run_data(&data, &inp.fx, p.stride).ok()?;
     let mut channels = Vec::new();
     let (mut e_after, mut worse) = (0.0, None);
+    let mut harmed: Option<&'static str> = None;
     let all: Vec<usize> = (0..rows.len()).collect();
     for (c, name) in inp.channels.iter().enumerate() {
         let meas: Vec<f64> = rows.iter().map(|&t| p.meas[c][t]).collect();
@@ -1049,6 +1145,7 @@ fn confirm(
         let (rb, ra) = (rmse(&meas, &before, &all), rmse(&meas, &now, &all));
         e_after += meas.iter().zip(&now).zip(&b.w[c]).map(|((m, s), w)| w * (m - s).powi(2)).sum::<f64>();
         if ra > WORSE * rb && worse.is_none() && !inp.against_current {
+            harmed = Some(name.name());
             worse = Some(format!("it would make {} worse ({:.3} -> {:.3})", name.name(), rb, ra));
         }
         channels.push(ChannelChange {
@@ -1061,14 +1158,17 @@ fn confirm(
     // On each run of a campaign too: a table that helps one run and harms another is
     // refused.
     if worse.is_none() && !inp.against_current {
-        worse = worse_somewhere(p, sim0, &after, rows, inp.o)
-            .map(|(name, f, k)| format!("it would make {name} worse on run {} ({k:.2}x its RMSE)", f + 1));
+        worse = worse_somewhere(p, sim0, &after, rows, inp.o).map(|(name, f, k)| {
+            harmed = Some(name);
+            format!("it would make {name} worse on run {} ({k:.2}x its RMSE)", f + 1)
+        });
     }
     // Against the user's current model too, when the table is fitted on top of a
     // proposal: proposal and table together must not make a channel worse than what the
     // user has now (the same simulation when the table stands alone).
     if worse.is_none() && inp.fx != inp.o.base {
         worse = worse_somewhere(p, &p.base_sim, &after, rows, inp.o).map(|(name, f, k)| {
+            harmed = Some(name);
             format!(
                 "with the proposal beside it, it would make {name} worse on run {} ({k:.2}x its RMSE)",
                 f + 1
@@ -1079,6 +1179,7 @@ fn confirm(
     // each round must not walk a run's error up by steps each within the guard.
     if let (None, Some(before)) = (&worse, &b.sim_before) {
         worse = worse_somewhere(p, before, &after, rows, inp.o).map(|(name, f, k)| {
+            harmed = Some(name);
             format!(
                 "with the earlier corrections it would make {name} worse on run {} ({k:.2}x its RMSE with the built-in maps)",
                 f + 1
@@ -1107,7 +1208,8 @@ fn confirm(
             )
         })
     });
-    Some(Step { data, lambda: f.lambda, heldout, confirmed, channels, refused })
+    let harmed = harmed.and_then(|h| inp.channels.iter().position(|ch| ch.name() == h));
+    Some(Step { data, lambda: f.lambda, heldout, confirmed, channels, refused, harmed })
 }
 
 /// Speed and throttle maps that never decrease in the base data do not in the
@@ -1390,9 +1492,42 @@ mod tests {
         let refs: Vec<&Vec<Vec<f64>>> = cols.iter().collect();
         let nm = normal(&refs, &[r], &[vec![1.0; len]], &folds, 2);
         let p = vec![1.0, -2.0, 1.0, -2.0, 4.0, -2.0, 1.0, -2.0, 1.0];
-        let (held, _, th) = best_lambda(&nm, &p, &[10.0; 3]);
+        let (held, _, th) = best_lambda(&nm, (&p, &[]), &[10.0; 3]);
         assert!(held > 0.0, "{held}");
         assert!((th[1] - th[0] - 1.0).abs() < 0.2 && (th[2] - th[1] - 1.0).abs() < 0.2, "{th:?}");
+    }
+
+    /// Two nodes, each moving both channels: the residual is on channel 0 alone, so the
+    /// unguarded fit moves channel 1 (the harm a table refused for it did); guarding
+    /// channel 1 shrinks its change by more than twenty times and still removes error on
+    /// held-out data, through the combination of nodes that channel 1 hardly sees.
+    #[test]
+    fn a_guarded_channel_is_left_as_it_was() {
+        let len = 80;
+        let x = |t: usize| 1.0 + 0.5 * (t as f64 * 0.7).sin();
+        let cols: Vec<Vec<Vec<f64>>> = vec![
+            vec![(0..len).map(x).collect(), (0..len).map(|t| 0.8 * x(t)).collect()],
+            vec![
+                (0..len).map(|t| 0.5 * x(t) * x(t)).collect(),
+                (0..len).map(|t| 0.4 * x(t) * x(t)).collect(),
+            ],
+        ];
+        let r = vec![(0..len).map(|t| 2.0 * x(t)).collect::<Vec<f64>>(), vec![0.0; len]];
+        let w = vec![vec![1.0; len]; 2];
+        let folds: Vec<usize> = (0..len).map(|t| t % 4).collect();
+        let refs: Vec<&Vec<Vec<f64>>> = cols.iter().collect();
+        let nm = normal(&refs, &r, &w, &folds, 4);
+        let rough = vec![0.0; 4];
+        let moved = |th: &[f64]| -> f64 {
+            (0..len).map(|t| (cols[0][1][t] * th[0] + cols[1][1][t] * th[1]).powi(2)).sum::<f64>().sqrt()
+        };
+        let (_, free) = heldout(&nm, &rough, 0.0, &[]);
+        let guard = guarded(&refs, &w, &[1]);
+        let (held, kept) = heldout(&nm, &rough, 0.0, &guard);
+        assert!(moved(&free) > 1.0, "unguarded, channel 1 moves: {}", moved(&free));
+        assert!(moved(&kept) < 0.05 * moved(&free), "guarded: {} against {}", moved(&kept), moved(&free));
+        assert!(held > 0.0, "{held}");
+        assert!(guarded(&refs, &w, &[]).is_empty());
     }
 
     /// A chain table chosen brings its companions; a set without one brings none.
