@@ -627,19 +627,26 @@ const GUARD_ROUNDS: usize = 3;
 /// has them. From the columns and weights only, not the residual, so every held-out
 /// fold may carry it whole.
 fn guarded(cols: &[&Vec<Vec<f64>>], w: &[Vec<f64>], chans: &[usize]) -> Vec<f64> {
-    let n = cols.len();
-    let mut g = vec![0.0; n * n];
+    use rayon::prelude::*;
     if chans.is_empty() {
         return Vec::new();
     }
-    for i in 0..n {
-        for j in 0..=i {
-            let v: f64 = chans
-                .iter()
-                .map(|&c| (0..w[c].len()).map(|t| w[c][t] * cols[i][c][t] * cols[j][c][t]).sum::<f64>())
-                .sum();
-            g[i * n + j] = GUARD * v;
-            g[j * n + i] = GUARD * v;
+    let n = cols.len();
+    // Row by row side by side (each element summed in the same order either way).
+    let rows: Vec<Vec<f64>> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let dot = |j: usize, c: usize| {
+                (0..w[c].len()).map(|t| w[c][t] * cols[i][c][t] * cols[j][c][t]).sum::<f64>()
+            };
+            (0..=i).map(|j| GUARD * chans.iter().map(|&c| dot(j, c)).sum::<f64>()).collect()
+        })
+        .collect();
+    let mut g = vec![0.0; n * n];
+    for (i, row) in rows.iter().enumerate() {
+        for (j, v) in row.iter().enumerate() {
+            g[i * n + j] = *v;
+            g[j * n + i] = *v;
         }
     }
     g
