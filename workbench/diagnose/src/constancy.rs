@@ -343,17 +343,7 @@ mod tests {
                 profile: Vec::new(),
                 held: None,
             };
-            let spec = ParamSpec {
-                effect: "axle_friction_scale",
-                param: "left",
-                cause: "axle_friction_scale",
-                neutral: 1.0,
-                delta: 0.01,
-                lower: 0.0,
-                upper: 10.0,
-                unit: "-",
-                step_bias: model_core::effects::Step::Abs(0.0),
-            };
+            let spec = axle_scale("left");
             let sd = 0.01 / x.iter().map(|v| v * v).sum::<f64>().sqrt();
             let resid = vec![(0..n).map(|t| p.meas[0][t] - f64::from(fit.sim[0][t])).collect()];
             drift(&p, &resid, &fit, &[&spec], &[1.0], &[sd])
@@ -399,18 +389,7 @@ mod tests {
                 profile: Vec::new(),
                 held: None,
             };
-            let spec = |param| ParamSpec {
-                effect: "axle_friction_scale",
-                param,
-                cause: "axle_friction_scale",
-                neutral: 1.0,
-                delta: 0.01,
-                lower: 0.0,
-                upper: 10.0,
-                unit: "-",
-                step_bias: model_core::effects::Step::Abs(0.0),
-            };
-            let (l, r) = (spec("left"), spec("right"));
+            let (l, r) = (axle_scale("left"), axle_scale("right"));
             let sd = 0.01 / x.iter().map(|v| v * v).sum::<f64>().sqrt();
             let resid: Vec<Vec<f64>> =
                 (0..2).map(|c| (0..n).map(|t| p.meas[c][t] - f64::from(fit.sim[c][t])).collect()).collect();
@@ -503,6 +482,21 @@ mod tests {
             .map(|ch| (0..n).map(|t| p.meas[ch][t] - f64::from(fit.sim[ch][t])).collect())
             .collect();
         drift(&p, &resid, &fit, &[&spec], &[start], &[sd])
+    }
+
+    /// One side's axle friction scale, as the library declares it for the fits here.
+    fn axle_scale(param: &'static str) -> ParamSpec {
+        ParamSpec {
+            effect: "axle_friction_scale",
+            param,
+            cause: "axle_friction_scale",
+            neutral: 1.0,
+            delta: 0.01,
+            lower: 0.0,
+            upper: 10.0,
+            unit: "-",
+            step_bias: model_core::effects::Step::Abs(0.0),
+        }
     }
 
     fn prepared(meas: Vec<Vec<f64>>, runs: usize) -> Prepared {
