@@ -170,12 +170,9 @@ impl Refitted<'_> {
 /// 99 %, refused as its right "changes with speed", 1.03 to 0.999). `None` when a
 /// start is missing.
 fn claimed_departure(specs: &[&ParamSpec], values: &[f64], starts: &[f64], i: usize) -> Option<f64> {
-    let (cause, unit) = (specs.get(i)?.cause, specs[i].unit);
-    let mut largest = (values.get(i)? - starts.get(i)?).abs();
-    for (j, _) in specs.iter().enumerate().filter(|(_, sp)| sp.cause == cause && sp.unit == unit) {
-        largest = largest.max((values.get(j)? - starts.get(j)?).abs());
-    }
-    Some(largest)
+    let own = specs.get(i)?;
+    let like = specs.iter().enumerate().filter(|(_, sp)| sp.cause == own.cause && sp.unit == own.unit);
+    like.map(|(j, _)| Some((values.get(j)? - starts.get(j)?).abs())).try_fold(0.0_f64, |m, d| Some(m.max(d?)))
 }
 
 /// Whether at least four `(x, estimate, σ)` points walk one way ([`trend`]), also with

@@ -537,16 +537,18 @@ fn roughness(maps: &[&MapNodes], d: &ModelData) -> Vec<f64> {
     p
 }
 
-/// Held-out error removed with roughness weight `lam` (absolute): the sum over folds of
-/// what a fit without the fold removes on it; and the fit on every fold.
-fn heldout(nm: &Normal, p: &[f64], lam: f64, guard: &[f64]) -> (f64, Vec<f64>) {
-    heldout_damped(nm, (p, lam, guard), 1.0)
+/// What a table fit is penalised by: the roughness matrix, its weight (absolute), and
+/// the guard on channels it must leave as they are ([`guarded`]; empty for none).
+type Penalty<'a> = (&'a [f64], f64, &'a [f64]);
+
+/// Held-out error removed under `pen`: the sum over folds of what a fit without the
+/// fold removes on it (measured unpenalised); and the fit on every fold.
+fn heldout(nm: &Normal, pen: Penalty) -> (f64, Vec<f64>) {
+    heldout_damped(nm, pen, 1.0)
 }
 
-/// As [`heldout`], with every fold's fit taken `alpha` of the way (a damped step). The
-/// fits are penalised by the roughness `p` times `lam` and by `guard` ([`guarded`]; empty
-/// for none); what they remove is measured on the unpenalised held-out fold.
-fn heldout_damped(nm: &Normal, (p, lam, guard): (&[f64], f64, &[f64]), alpha: f64) -> (f64, Vec<f64>) {
+/// As [`heldout`], with every fold's fit taken `alpha` of the way (a damped step).
+fn heldout_damped(nm: &Normal, (p, lam, guard): Penalty, alpha: f64) -> (f64, Vec<f64>) {
     let n = nm.n;
     let mut total = 0.0;
     let penalised = |g: &mut Vec<f64>| {
@@ -584,7 +586,7 @@ fn best_lambda(nm: &Normal, (p, guard): (&[f64], &[f64]), limit: &[f64]) -> (f64
     let mut best = (f64::NEG_INFINITY, 0.0, vec![0.0; nm.n]);
     for k in -12..=8 {
         let rel = 10f64.powf(f64::from(k) / 2.0);
-        let (h, th) = heldout(nm, p, rel * scale.max(1e-300), guard);
+        let (h, th) = heldout(nm, (p, rel * scale.max(1e-300), guard));
         let within = th.iter().zip(limit).all(|(t, l)| t.abs() <= *l);
         if within && h > best.0 {
             best = (h, rel, th);
@@ -1528,9 +1530,9 @@ mod tests {
         let moved = |th: &[f64]| -> f64 {
             (0..len).map(|t| (cols[0][1][t] * th[0] + cols[1][1][t] * th[1]).powi(2)).sum::<f64>().sqrt()
         };
-        let (_, free) = heldout(&nm, &rough, 0.0, &[]);
+        let (_, free) = heldout(&nm, (&rough, 0.0, &[]));
         let guard = guarded(&refs, &w, &[1]);
-        let (held, kept) = heldout(&nm, &rough, 0.0, &guard);
+        let (held, kept) = heldout(&nm, (&rough, 0.0, &guard));
         assert!(moved(&free) > 1.0, "unguarded, channel 1 moves: {}", moved(&free));
         assert!(moved(&kept) < 0.05 * moved(&free), "guarded: {} against {}", moved(&kept), moved(&free));
         assert!(held > 0.0, "{held}");
