@@ -852,6 +852,16 @@ impl SetFit {
         any && all
     }
 
+    /// Whether member `effect` is a measurement-chain fault with a partner of the same
+    /// kind on another channel that the joint refit holds alike ([`ParamSpec::alike`]):
+    /// one cause on both channels, which the set must not name as two sensors.
+    pub fn alike_partner(&self, effect: &str) -> bool {
+        let members = || self.specs.iter().zip(self.fit.values.iter().zip(&self.reported));
+        members()
+            .filter(|(sp, _)| sp.cause == effect)
+            .any(|(sp, (&v, &sd))| members().any(|(sq, (&w, &sw))| sp.alike((v, sd), sq, (w, sw))))
+    }
+
     /// The members already in the model (some parameter started off its neutral value)
     /// that the joint refit returns to the thesis model: every parameter's reported 95 %
     /// interval holds its neutral value, and some parameter's excludes the value the
@@ -1065,5 +1075,37 @@ mod tests {
         );
         assert!(!held.holds_thesis("axle_friction_scale"), "already in the model");
         assert!(!clear.holds_thesis("connector_resistance"), "not a member");
+    }
+
+    /// A set naming both flange torques' gains held alike by the joint refit (proof case
+    /// 1,005,925: 1.0809 and 1.0805, ± 0.035) has each member's partner alike; gains of
+    /// 1.0805 and 1.05 do not, nor do the two sides of one physical effect.
+    #[test]
+    fn a_set_holds_sensor_faults_alike_on_two_channels() {
+        let lib = super::super::library::library(&Params::default());
+        let pick = |causes: [&str; 2]| -> Vec<ParamSpec> {
+            causes
+                .iter()
+                .map(|c| lib.iter().find(|s| s.cause == *c).expect("in the library").clone())
+                .collect()
+        };
+        let gains = pick(["sensor_gain.c_kistler_l", "sensor_gain.c_kistler_r"]);
+        let set = |specs: Vec<ParamSpec>, values: Vec<f64>| {
+            let effects = specs.iter().map(|s| s.cause).collect();
+            set_at((effects, specs), values, (vec![0.0176; 2], vec![0.0176; 2]), vec![1.0, 1.0])
+        };
+        let alike = set(gains.clone(), vec![1.0805, 1.0809]);
+        assert!(
+            alike.alike_partner("sensor_gain.c_kistler_l") && alike.alike_partner("sensor_gain.c_kistler_r")
+        );
+        let apart = set(gains, vec![1.0805, 1.05]);
+        assert!(
+            !apart.alike_partner("sensor_gain.c_kistler_l")
+                && !apart.alike_partner("sensor_gain.c_kistler_r")
+        );
+        let axle: Vec<ParamSpec> =
+            lib.iter().filter(|s| s.effect == "axle_friction_scale").cloned().collect();
+        let physical = set(axle, vec![1.0805, 1.0809]);
+        assert!(!physical.alike_partner("axle_friction_scale"), "one effect's two sides, not sensors");
     }
 }

@@ -39,6 +39,23 @@ impl ParamSpec {
         self.cause != self.effect
     }
 
+    /// Whether `self` fitted at `(a, σa)` and `other` at `(b, σb)` are one kind of
+    /// measurement-chain fault on two channels, agreeing as one cause acting on both
+    /// would make them: within a tenth of the smaller departure from the thesis value and
+    /// within 2 σ of their difference. Sensors fail apart; two that fail alike to a tenth
+    /// is what a cause upstream of both does (a map feeding both flange torques, a delay
+    /// of the physics seen on several speeds), and a sensor cause moves one channel alone.
+    pub fn alike(&self, (a, sa): (f64, f64), other: &ParamSpec, (b, sb): (f64, f64)) -> bool {
+        let kin = self.is_chain()
+            && other.is_chain()
+            && self.cause != other.cause
+            && self.effect == other.effect
+            && self.unit == other.unit;
+        let diff = (a - b).abs();
+        kin && diff < 0.1 * (a - self.neutral).abs().min((b - self.neutral).abs())
+            && diff < 2.0 * sa.hypot(sb)
+    }
+
     /// The declared scan grid `(step, to)` of a parameter whose objective has narrow
     /// valleys ([`model_core::effects::Fit::scan`]).
     pub fn scan(&self) -> Option<(f64, f64)> {

@@ -126,6 +126,12 @@ impl Evidence<'_> {
                 fp.name, fp.ci95.0, fp.ci95.1, fp.unit
             ));
         }
+        if let Some((twin, v, w)) = self.fault_alike(c) {
+            return Some(format!(
+                "{} fits alike ({w:.4} for {v:.4}): one cause on both channels, not a fault of one sensor",
+                twin.moves.first().copied().unwrap_or(twin.effect)
+            ));
+        }
         if let Some(a) = &c.map_alias {
             return Some(alias_refusal(c, a));
         }
@@ -153,6 +159,23 @@ impl Evidence<'_> {
             })
         };
         (!c.params.is_empty() && c.params.iter().all(holds)).then(|| &c.params[0])
+    }
+
+    /// For a measurement-chain cause `c`, a significant candidate of the same kind on
+    /// another channel whose value agrees with `c`'s as one cause on both would make it
+    /// ([`ParamSpec::alike`]), with the two values: both flange torques read 1.081 ± 0.035 (to
+    /// 0.0004) where only maps were wrong, claimed as two gains in four proofs.
+    fn fault_alike(&self, c: &Candidate) -> Option<(&Candidate, f64, f64)> {
+        let chain = |c: &Candidate| {
+            let fp = c.params.first()?;
+            let sp = self.s.specs.iter().find(|s| s.cause == c.effect && s.param == fp.name)?;
+            Some((sp, (fp.value, fp.std)))
+        };
+        let (sp, v) = chain(c)?;
+        self.cands.iter().filter(|d| d.effect != c.effect && d.significant).find_map(|d| {
+            let (sq, w) = chain(d)?;
+            sp.alike(v, sq, w).then_some((d, v.0, w.0))
+        })
     }
 
     /// The first of `c`'s own parameters whose refit ends at its search range
@@ -500,6 +523,7 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
         ev.absorbs(c, &set.fit.sim)
             || (c.drift.is_some() && !set.clear_of_neutral(c.effect))
             || set.holds_thesis(c.effect)
+            || set.alike_partner(c.effect)
             || c.map_alias.is_some()
     }) || set.effects.iter().any(|e| !set.supports(e))
         || set.specs.iter().zip(&set.fit.values).any(|(sp, v)| sp.at_end(*v))
@@ -984,6 +1008,71 @@ mod tests {
         assert_eq!(lead, None);
         assert_eq!(judge(0.0, (0.006, 0.018)), (None, Some("supply_resistance")));
         assert_eq!(judge(0.01, (0.0, 0.03)), (None, Some("supply_resistance")));
+    }
+
+    /// Gains of both flange torques fitted alike (1.0805 and 1.0809, each ± 0.035) are one
+    /// cause upstream of both, not two sensors: neither is named, each refused with the
+    /// other's value. Gains that differ by more than a tenth of their departure (1.0805
+    /// and 1.05), each fitting its own channel, both count.
+    #[test]
+    fn sensor_faults_fitted_alike_on_two_channels_are_not_named() {
+        let n = 400;
+        let channels = [Channel::CKistlerL, Channel::CKistlerR];
+        let wave = |k: usize| 50.0 + 20.0 * (k as f64 * 0.05).sin();
+        let sim = |g: [f64; 2]| -> Vec<Vec<f32>> {
+            g.iter().map(|g| (0..n).map(|k| (g * wave(k)) as f32).collect()).collect()
+        };
+        let o = Options::default();
+        let specs: Vec<ParamSpec> = super::super::library::library(&o.params)
+            .into_iter()
+            .filter(|sp| sp.cause == "sensor_gain.c_kistler_l" || sp.cause == "sensor_gain.c_kistler_r")
+            .collect();
+        assert_eq!(specs.len(), 2);
+        let s = Sensitivities {
+            groups: vec![("sensor_gain.c_kistler_l", vec![0]), ("sensor_gain.c_kistler_r", vec![1])],
+            specs,
+            ..supply_resistance_only(&o)
+        };
+        let judge = |right: f64| {
+            let meas: Vec<Vec<f64>> =
+                [1.0805, right].iter().map(|g| (0..n).map(|k| g * wave(k)).collect()).collect();
+            let p =
+                Prepared::single_run(meas, vec![("C_Kistler_L", 0.3), ("C_Kistler_R", 0.3)], sim([1.0, 1.0]));
+            let gain =
+                |effect: &'static str, name: &'static str, v: f64, moves: &'static str, g: [f64; 2]| {
+                    let after = sim(g);
+                    let energy: f64 = channel_energies(&p, &after).iter().sum();
+                    let fp = FittedParam {
+                        name,
+                        value: v,
+                        start: 1.0,
+                        std: 0.035 / 1.96,
+                        std_data: 0.0,
+                        ci95: (v - 0.035, v + 0.035),
+                        unit: "-",
+                    };
+                    let c = Candidate {
+                        confirmed_reduction: Some(((p.e0 - energy) / p.excess).clamp(0.0, 1.0)),
+                        energy_after: Some(energy),
+                        significant: true,
+                        moves: vec![moves],
+                        leaves_structure: Some(true),
+                        params: vec![fp],
+                        ..Candidate::named(effect, 0.5)
+                    };
+                    (c, Fit::fixed(vec![v], after, energy))
+                };
+            let (l, fl) =
+                gain("sensor_gain.c_kistler_l", "c_kistler_l", 1.0805, "C_Kistler_L", [1.0805, 1.0]);
+            let (r, fr) = gain("sensor_gain.c_kistler_r", "c_kistler_r", right, "C_Kistler_R", [1.0, right]);
+            let (cands, fits) = (vec![l, r], vec![(0, fl), (1, fr)]);
+            let ev = one_candidate(&p, &s, &o, &channels, 0.01, (&cands, &fits));
+            (ev.refusal(&cands[0]), ev.refusal(&cands[1]))
+        };
+        let (l, r) = judge(1.0809);
+        assert_eq!(l.as_deref(), Some("C_Kistler_R fits alike (1.0809 for 1.0805): one cause on both channels, not a fault of one sensor"));
+        assert_eq!(r.as_deref(), Some("C_Kistler_L fits alike (1.0805 for 1.0809): one cause on both channels, not a fault of one sensor"));
+        assert_eq!(judge(1.05), (None, None));
     }
 
     /// Sensitivities holding the supply resistance alone (what the verdict reads of them).
