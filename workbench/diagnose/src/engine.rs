@@ -839,19 +839,6 @@ impl SetFit {
         self.intervals(effect).any(|(sp, _, (lo, hi))| sp.neutral < lo || sp.neutral > hi)
     }
 
-    /// Whether member `effect` is new to the model (every parameter started at its
-    /// neutral value) and the set holds it there: every reported 95 % interval of it
-    /// holds the thesis value, so the set does not show it is there
-    /// ([`super::verdict`] names no such effect, alone or in a set).
-    pub fn holds_thesis(&self, effect: &str) -> bool {
-        let mut any = false;
-        let all = self.intervals(effect).all(|(sp, s0, (lo, hi))| {
-            any = true;
-            !sp.off_neutral(s0) && lo <= sp.neutral && sp.neutral <= hi
-        });
-        any && all
-    }
-
     /// Whether member `effect` is a measurement-chain fault with a partner of the same
     /// kind on another channel that the joint refit holds alike ([`ParamSpec::alike`]):
     /// one cause on both channels, which the set must not name as two sensors.
@@ -1064,17 +1051,6 @@ mod tests {
         assert!(data_wide.supports("axle_friction_scale"), "statistically it moved");
         assert!(!data_wide.clear_of_neutral("axle_friction_scale"));
         assert!(!clear.clear_of_neutral("connector_resistance"), "not a member");
-        // New to the model (both sides start at 1): the set holds the wide one at the
-        // thesis value, not the clear one; nor a member that was already in the model.
-        assert!(data_wide.holds_thesis("axle_friction_scale") && !clear.holds_thesis("axle_friction_scale"));
-        let held = set_at(
-            (vec![axle[0].cause], axle.clone()),
-            vec![0.887, 0.864],
-            (sd(0.01, 0.01), sd(0.292, 0.349)),
-            vec![0.9, 1.0],
-        );
-        assert!(!held.holds_thesis("axle_friction_scale"), "already in the model");
-        assert!(!clear.holds_thesis("connector_resistance"), "not a member");
     }
 
     /// A set naming both flange torques' gains held alike by the joint refit (proof case

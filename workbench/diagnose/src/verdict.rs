@@ -115,17 +115,6 @@ impl Evidence<'_> {
         if f.credit(self.p.e0) < self.o.min_reduction_of_noise * self.p.e_noise && !self.clears_structure(c) {
             return Some("its refit removes less than a chance fit of the noise".into());
         }
-        if let Some(fp) = self.holds_thesis(c).filter(|_| !self.explains_all(f)) {
-            let why = if 2.0 * fp.std_data * fp.std_data > fp.std * fp.std {
-                ", as wide mostly for the identified data's stated uncertainty"
-            } else {
-                ""
-            };
-            return Some(format!(
-                "its 95 % interval holds the thesis model's value ({} {:.4}–{:.4} {}{why}): the run does not show it is there",
-                fp.name, fp.ci95.0, fp.ci95.1, fp.unit
-            ));
-        }
         if let Some((twin, v, w)) = self.fault_alike(c) {
             return Some(format!(
                 "{} fits alike ({w:.4} for {v:.4}): one cause on both channels, not a fault of one sensor",
@@ -142,27 +131,6 @@ impl Evidence<'_> {
             ));
         }
         None
-    }
-
-    /// For `c` new to the model (every parameter at its thesis value), its first
-    /// parameter when every reported 95 % interval holds the thesis value: significance
-    /// is judged on the statistical σ, the interval adds the identified maps' stated
-    /// uncertainty and the misfit, so a fit can be significant while the value it
-    /// reports is no evidence the effect is there (an axle friction scale of
-    /// 0.98 ± 0.15 beside a friction map known to ±15 %, removing part of the error).
-    /// Such an effect is named only when its shape carries the evidence its value does
-    /// not: its refit explains the error ([`Self::explains_all`]; a differential
-    /// friction of 3.98 N m, [0, 8.15] beside the inverter map's stated σ, removing all
-    /// of it). A partial fit holding the thesis value stands in for part of something
-    /// else.
-    fn holds_thesis<'c>(&self, c: &'c Candidate) -> Option<&'c FittedParam> {
-        let spec = |fp: &FittedParam| self.s.specs.iter().find(|s| s.cause == c.effect && s.param == fp.name);
-        let holds = |fp: &FittedParam| {
-            spec(fp).is_some_and(|sp| {
-                !sp.off_neutral(fp.start) && fp.ci95.0 <= sp.neutral && sp.neutral <= fp.ci95.1
-            })
-        };
-        (!c.params.is_empty() && c.params.iter().all(holds)).then(|| &c.params[0])
     }
 
     /// For a measurement-chain cause `c`, a significant candidate of the same kind on
@@ -291,17 +259,6 @@ impl Evidence<'_> {
     /// of their excess error it removes, and what it leaves there over the noise. (A
     /// torque-sensor offset acts on one channel of thirteen; its share of the whole run's
     /// excess says little.)
-    /// Whether `f` explains the error: it removes `explain_fraction` of the excess on the
-    /// channels it changes, leaving them and the whole run noise-like (what a "missing"
-    /// verdict asks of its lead).
-    pub(super) fn explains_all(&self, f: &Fit) -> bool {
-        let (red_a, after_a) = self.on_affected(f);
-        let o = self.o;
-        red_a >= o.explain_fraction
-            && after_a <= o.noise_like_ratio
-            && f.energy / self.p.e_noise <= o.noise_like_ratio
-    }
-
     fn on_affected(&self, f: &Fit) -> (f64, f64) {
         let per_sample = self.p.idx.len() as f64;
         let e0c = channel_energies(self.p, &self.p.base_sim);
@@ -531,14 +488,12 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     // the joint refit takes from it (an axle friction scale beside a connector
     // resistance, each drifting with the load alone); it stays only when the set holds
     // it clear of the thesis value by more than the data's uncertainty (the set's own
-    // drift is tested below). A member new to the model that the set's intervals hold at
-    // the thesis value is named only when the set explains the error, as it would be
-    // alone ([`Evidence::holds_thesis`]).
+    // drift is tested below). Two sensor members of one kind held alike are one cause on
+    // both channels, not two sensors ([`SetFit::alike_partner`]).
     let member = |e: &&'static str| ev.cands.iter().find(|c| c.effect == *e);
     if set.effects.iter().filter_map(member).any(|c| {
         ev.absorbs(c, &set.fit.sim)
             || (c.drift.is_some() && !set.clear_of_neutral(c.effect))
-            || (set.holds_thesis(c.effect) && !ev.explains_all(&set.fit))
             || set.alike_partner(c.effect)
             || c.map_alias.is_some()
     }) || set.effects.iter().any(|e| !set.supports(e))
@@ -976,56 +931,6 @@ mod tests {
         let (why, v) = judge(0.1);
         assert_eq!(why, None);
         assert_eq!(v.lead, Some("supply_resistance"), "{}", v.sentence);
-    }
-
-    /// A significant supply resistance new to the model whose reported 95 % interval holds
-    /// the thesis value (0 ohm) and whose refit removes only part of the error is not
-    /// named: the value it reports does not show the effect is there. The same fit with
-    /// an interval clear of 0 is the lead; so is one holding 0 whose refit explains the
-    /// error (its shape is the evidence), and one holding 0 for a resistance already in
-    /// the model (whether the data returns that one is the held members' test).
-    #[test]
-    fn a_new_effect_whose_interval_holds_the_thesis_value_is_not_named() {
-        let n = 400;
-        let channels = [Channel::VDc, Channel::IDc];
-        let wave = |k: usize| (k as f64 * 0.05).sin();
-        let meas: Vec<Vec<f64>> = vec![(0..n).map(|k| 24.0 + 0.2 * wave(k)).collect(), vec![100.0; n]];
-        let sim = |v: f64| -> Vec<Vec<f32>> {
-            vec![(0..n).map(|k| (24.0 + v * wave(k)) as f32).collect(), vec![100.1f32; n]]
-        };
-        let p = Prepared::single_run(meas, vec![("V_DC", 0.01), ("I_DC", 0.1)], sim(0.0));
-        let o = Options::default();
-        let s = supply_resistance_only(&o);
-        let judge = |start: f64, ci95: (f64, f64), swing: f64| {
-            let after = sim(swing);
-            let energy: f64 = channel_energies(&p, &after).iter().sum();
-            let fp = FittedParam {
-                name: "resistance_ohm",
-                value: 0.012,
-                start,
-                std: (ci95.1 - ci95.0) / 3.92,
-                std_data: 0.0,
-                ci95,
-                unit: "ohm",
-            };
-            let cand = Candidate { params: vec![fp], ..supply_candidate(&p, energy, false) };
-            let (cands, fits) = (vec![cand], vec![(0, Fit::fixed(vec![0.012], after, energy))]);
-            let ev = one_candidate(&p, &s, &o, &channels, 0.01, (&cands, &fits));
-            (ev.refusal(&cands[0]), conclude(&ev).lead)
-        };
-        assert_eq!(s.specs[0].neutral, 0.0);
-        let (why, lead) = judge(0.0, (0.0, 0.03), 0.12);
-        let why = why.expect("refused");
-        assert!(
-            why.starts_with(
-                "its 95 % interval holds the thesis model's value (resistance_ohm 0.0000–0.0300 ohm)"
-            ),
-            "{why}"
-        );
-        assert_eq!(lead, None);
-        assert_eq!(judge(0.0, (0.006, 0.018), 0.12), (None, Some("supply_resistance")));
-        assert_eq!(judge(0.0, (0.0, 0.03), 0.2), (None, Some("supply_resistance")), "it explains the error");
-        assert_eq!(judge(0.01, (0.0, 0.03), 0.12), (None, Some("supply_resistance")));
     }
 
     /// Gains of both flange torques fitted alike (1.0805 and 1.0809, each ± 0.035) are one
