@@ -135,14 +135,11 @@ impl Evidence<'_> {
 
     /// For a measurement-chain cause `c`, a significant candidate of the same kind on
     /// another channel whose value agrees with `c`'s as one cause on both would make it
-    /// ([`ParamSpec::alike`]), with the two values: both flange torques read 1.081 ± 0.035 (to
-    /// 0.0004) where only maps were wrong, claimed as two gains in four proofs.
+    /// ([`ParamSpec::alike`]), with the two values: both flange torques read 1.081 ± 0.035
+    /// (to 0.0004) where only maps were wrong, claimed as two gains in proofs 12, 13 and 15.
     fn fault_alike(&self, c: &Candidate) -> Option<(&Candidate, f64, f64)> {
-        let chain = |c: &Candidate| {
-            let fp = c.params.first()?;
-            let sp = self.s.specs.iter().find(|s| s.cause == c.effect && s.param == fp.name)?;
-            Some((sp, (fp.value, fp.std)))
-        };
+        let chain =
+            |c: &Candidate| c.params.first().and_then(|fp| Some((self.spec_of(c, fp)?, (fp.value, fp.std))));
         let (sp, v) = chain(c)?;
         self.cands.iter().filter(|d| d.effect != c.effect && d.significant).find_map(|d| {
             let (sq, w) = chain(d)?;
@@ -154,9 +151,14 @@ impl Evidence<'_> {
     /// ([`ParamSpec::at_end`]), with its value.
     fn at_end(&self, c: &Candidate) -> Option<(&ParamSpec, f64)> {
         c.params.iter().find_map(|fp| {
-            let sp = self.s.specs.iter().find(|s| s.cause == c.effect && s.param == fp.name)?;
+            let sp = self.spec_of(c, fp)?;
             sp.at_end(fp.value).then_some((sp, fp.value))
         })
+    }
+
+    /// The declaration of `c`'s fitted parameter `fp`.
+    fn spec_of(&self, c: &Candidate, fp: &FittedParam) -> Option<&ParamSpec> {
+        self.s.specs.iter().find(|s| s.cause == c.effect && s.param == fp.name)
     }
 
     /// Whether `c`'s refit leaves no structure on the channels it moves where the current
