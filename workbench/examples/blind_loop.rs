@@ -132,6 +132,133 @@ struct Library {
     found: bool,
     /// Beside perturbed maps: its signal against theirs ([`MapsError::ratio`]).
     against_maps: Option<f64>,
+    /// Why it is not in the final file, when it is not ([`Unfound::of`]).
+    why: Option<Why>,
+}
+
+/// What kept a hidden effect out of the final file, in the round that came closest to
+/// naming it: the sweep's failures explained by the verdicts' own reasons.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Why {
+    /// No round's ranking held it.
+    NeverRanked,
+    /// Ranked, never significant.
+    NotSignificant,
+    /// Refused: it makes a channel worse (beside a wrong map, most often).
+    MadeWorse,
+    /// Refused: its value changes over the run, with speed or with the load.
+    NotConstant,
+    /// Refused: a change of a map removes as much (a wrong map looks alike).
+    MapAlike,
+    /// Refused: it leaves its channel above the noise (absorbs only part).
+    AbsorbsPart,
+    /// Refused for another reason.
+    OtherRefusal,
+    /// Significant, not refused, leading its round's ranking, which ended unexplained:
+    /// it removes too little of the error to be named.
+    TooLittle,
+    /// Significant and not refused, but another candidate or a table was preferred.
+    NotChosen,
+    /// Named in a round, not in the final file (taken out later).
+    Dropped,
+}
+
+impl Why {
+    const ALL: [Why; 10] = [
+        Why::NeverRanked,
+        Why::NotSignificant,
+        Why::MadeWorse,
+        Why::NotConstant,
+        Why::MapAlike,
+        Why::AbsorbsPart,
+        Why::OtherRefusal,
+        Why::TooLittle,
+        Why::NotChosen,
+        Why::Dropped,
+    ];
+
+    fn label(self) -> &'static str {
+        match self {
+            Why::NeverRanked => "never ranked",
+            Why::NotSignificant => "never significant",
+            Why::MadeWorse => "refused, makes a channel worse",
+            Why::NotConstant => "refused, not a constant",
+            Why::MapAlike => "refused, a map change does as well",
+            Why::AbsorbsPart => "refused, absorbs only part",
+            Why::OtherRefusal => "refused otherwise",
+            Why::TooLittle => "leads, removes too little to name",
+            Why::NotChosen => "another candidate or a table chosen",
+            Why::Dropped => "named, later taken out",
+        }
+    }
+
+    /// The kind of a verdict's refusal text.
+    fn of_refusal(text: &str) -> Why {
+        if text.contains("worse") {
+            Why::MadeWorse
+        } else if text.contains("changes with") || text.contains("drifts over") {
+            Why::NotConstant
+        } else if text.contains("look alike") || text.contains("as much") {
+            Why::MapAlike
+        } else if text.contains("above the noise") {
+            Why::AbsorbsPart
+        } else {
+            Why::OtherRefusal
+        }
+    }
+}
+
+/// A hidden effect not found: why, and the round that came closest, for the case's line.
+struct Unfound {
+    why: Why,
+    detail: String,
+}
+
+impl Unfound {
+    /// From the rounds' JSON: a round that named `id` (then [`Why::Dropped`]); else the
+    /// ranking entry of `id` (any of its channels) with the largest reduction, significant
+    /// ones first, and its refusal.
+    fn of(rounds: &[Value], id: &str) -> Unfound {
+        let label = |e: &str| e == id || e.strip_prefix(id).is_some_and(|r| r.starts_with('.'));
+        let named = rounds.iter().position(|j| {
+            j["stated"]
+                .as_array()
+                .is_some_and(|st| st.iter().any(|x| x["effect"].as_str().is_some_and(label)))
+        });
+        if let Some(k) = named {
+            return Unfound { why: Why::Dropped, detail: format!("named in round {}", k + 1) };
+        }
+        let entries = rounds.iter().enumerate().flat_map(|(k, j)| {
+            let ranking = j["ranking"].as_array().map(Vec::as_slice).unwrap_or_default();
+            ranking
+                .iter()
+                .enumerate()
+                .filter_map(move |(r, c)| c["effect"].as_str().filter(|e| label(e)).map(|_| (k, r, c)))
+        });
+        let reduction =
+            |c: &Value| c["confirmed_reduction"].as_f64().or(c["error_reduction"].as_f64()).unwrap_or(0.0);
+        let key = |c: &Value| (c["significant"].as_bool().unwrap_or(false), reduction(c));
+        let best = entries.max_by(|a, b| {
+            let (ka, kb) = (key(a.2), key(b.2));
+            ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
+        });
+        let Some((k, r, c)) = best else { return Unfound { why: Why::NeverRanked, detail: String::new() } };
+        let refused = c["refused"].as_str().filter(|t| !t.is_empty());
+        let why = match (c["significant"].as_bool().unwrap_or(false), refused) {
+            (false, _) => Why::NotSignificant,
+            (true, Some(t)) => Why::of_refusal(t),
+            (true, None) if r == 0 && rounds[k]["kind"].as_str() == Some("unexplained") => Why::TooLittle,
+            (true, None) => Why::NotChosen,
+        };
+        let head = format!("round {} #{} removes {:.0} %", k + 1, r + 1, 100.0 * reduction(c));
+        let detail = match refused {
+            Some(t) if why != Why::NotSignificant => {
+                format!("{head}: {}", t.chars().take(70).collect::<String>())
+            }
+            _ => head,
+        };
+        Unfound { why, detail }
+    }
 }
 
 /// The sweep's flags, parsed once (an unknown flag or a bad value is an error, not a
@@ -612,9 +739,10 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
             Some(m) => Some(m.ratio(dir, &c.scenario, i, &moves_of(&truth_toml, id))?),
             None => None,
         };
-        if !found {
-            let against = beside.map(|r| format!(" ({r:.2}x the maps' error)")).unwrap_or_default();
-            missed.push(format!("{id} not found{against}"));
+        let unfound = (!found).then(|| Unfound::of(rounds, id));
+        if let Some(u) = &unfound {
+            let against = beside.map(|r| format!("{r:.2}x the maps' error; ")).unwrap_or_default();
+            missed.push(format!("{id} not found ({against}{}: {})", u.why.label(), u.detail));
         } else if let Some((lo, hi)) = stated_interval(rounds, id, param) {
             let inside = lo <= *value && *value <= hi;
             coverage.0 += usize::from(inside);
@@ -623,7 +751,7 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
                 missed.push(format!("{id}.{param} = {value:.4} outside [{lo:.4}, {hi:.4}]"));
             }
         }
-        library.push(Library { found, against_maps: beside });
+        library.push(Library { found, against_maps: beside, why: unfound.map(|u| u.why) });
     }
     Ok(Outcome {
         class: class_of(c),
@@ -863,6 +991,24 @@ fn summary(o: &[Outcome]) -> bool {
         by_ratio(&|r| (1.0..3.0).contains(&r)),
         by_ratio(&|r| r >= 3.0)
     );
+    let unfound: Vec<(Why, bool)> =
+        o.iter().flat_map(|x| x.library.iter().filter_map(move |l| Some((l.why?, x.maps)))).collect();
+    if !unfound.is_empty() {
+        let n = |w: Why, maps: bool| unfound.iter().filter(|u| **u == (w, maps)).count();
+        let rows: Vec<String> = Why::ALL
+            .iter()
+            .filter(|w| n(**w, false) + n(**w, true) > 0)
+            .map(|w| {
+                format!(
+                    "{} {} ({} beside perturbed maps)",
+                    w.label(),
+                    n(*w, false) + n(*w, true),
+                    n(*w, true)
+                )
+            })
+            .collect();
+        println!("  not found, why (the round that came closest): {}", rows.join("; "));
+    }
     println!("nothing hidden, nothing claimed: {}  (target >= 98 %)", pct(quiet, hidden_none));
     println!("95 % intervals covering the truth: {}  (target 90-99 %)", pct(cin, ctot));
     // An interval holds the data's stated uncertainty, which only a perturbed map
