@@ -219,7 +219,7 @@ impl Unfound {
     /// ranking entry of `id` (any of its channels) with the largest reduction, significant
     /// ones first, and its refusal.
     fn of(rounds: &[Value], id: &str) -> Unfound {
-        let label = |e: &str| e == id || e.strip_prefix(id).is_some_and(|r| r.starts_with('.'));
+        let label = |e: &str| labels(e, id);
         let named = rounds.iter().position(|j| {
             j["stated"]
                 .as_array()
@@ -774,13 +774,18 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
     })
 }
 
+/// Whether the JSON's effect label `e` is effect `id` or one of its channels (`id.channel`).
+fn labels(e: &str, id: &str) -> bool {
+    e == id || e.strip_prefix(id).is_some_and(|r| r.starts_with('.'))
+}
+
 /// The 95 % interval stated for `id`.`param` (to test whether it holds the truth): the interval the
 /// verdict stated beside the value the final effect file holds, i.e. in the last round
 /// whose verdict names the effect (`stated`: a set's joint refit, not a member's own refit
 /// in the ranking; that round's proposal wrote the value, and a later round keeps it).
 /// Rounds kept before the JSON had `stated`: the first round naming it, its ranking entry.
 fn stated_interval(rounds: &[Value], id: &str, param: &str) -> Option<(f64, f64)> {
-    let label = |e: &str| e == id || e.strip_prefix(id).is_some_and(|r| r.starts_with('.'));
+    let label = |e: &str| labels(e, id);
     let inside =
         |ci: &Value| -> Option<(f64, f64)> { Some((ci[param][0].as_f64()?, ci[param][1].as_f64()?)) };
     if rounds.iter().any(|j| j.get("stated").is_some()) {
@@ -994,18 +999,14 @@ fn summary(o: &[Outcome]) -> bool {
     let unfound: Vec<(Why, bool)> =
         o.iter().flat_map(|x| x.library.iter().filter_map(move |l| Some((l.why?, x.maps)))).collect();
     if !unfound.is_empty() {
-        let n = |w: Why, maps: bool| unfound.iter().filter(|u| **u == (w, maps)).count();
+        let n = |w: Why, beside: &dyn Fn(bool) -> bool| {
+            unfound.iter().filter(|u| u.0 == w && beside(u.1)).count()
+        };
         let rows: Vec<String> = Why::ALL
             .iter()
-            .filter(|w| n(**w, false) + n(**w, true) > 0)
-            .map(|w| {
-                format!(
-                    "{} {} ({} beside perturbed maps)",
-                    w.label(),
-                    n(*w, false) + n(*w, true),
-                    n(*w, true)
-                )
-            })
+            .map(|&w| (w, n(w, &|_| true), n(w, &|m| m)))
+            .filter(|(_, all, _)| *all > 0)
+            .map(|(w, all, maps)| format!("{} {all} ({maps} beside perturbed maps)", w.label()))
             .collect();
         println!("  not found, why (the round that came closest): {}", rows.join("; "));
     }
