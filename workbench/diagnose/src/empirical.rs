@@ -352,10 +352,13 @@ fn query(axis: Axis, sp: &SetPoints) -> Option<(f32, f32)> {
 
 /// Per run of a campaign (`segments`: its samples) and value of 2-D map `file`, the
 /// first step at which the model reads it at the runs' set points ([`query`]: the cell
-/// corners [`locate`] finds on each axis), `None` when the run never does. Until then a
-/// change of the value leaves the run bit for bit as it was, so its response is
-/// simulated from there only ([`Twin::run_data_from`]). `None` for a map read at a
-/// state (1-D maps) or a scalar.
+/// corners [`locate`] finds on each axis) with a weight that is not exactly 0, `None`
+/// when the run never does. Until then a change of the value leaves the run bit for bit
+/// as it was, so its response is simulated from there only ([`Twin::run_data_from`]),
+/// and a value no run reads so costs no simulation: a set point on a grid line (a
+/// profile's 50 % load) has fraction 0 in its cell, and the interpolation
+/// `z0 + 0·(z1 − z0)` is `z0` whatever `z1` is (a quarter of the perturbed benchmark's
+/// node simulations). `None` for a map read at a state (1-D maps) or a scalar.
 fn read_by_run(
     d: &ModelData,
     file: &str,
@@ -379,10 +382,15 @@ fn read_by_run(
                 continue;
             }
             last = Some(q);
-            let (ix, _) = locate(x, q.0);
-            let (iy, _) = locate(y, q.1);
-            for (r, c) in [(iy, ix), (iy, ix + 1), (iy + 1, ix), (iy + 1, ix + 1)] {
-                if r < ny && c < nx {
+            let (ix, tx) = locate(x, q.0);
+            let (iy, ty) = locate(y, q.1);
+            // The upper corner of an axis at fraction 0 is not read (1 still is: `z0 + 1·(z1 − z0)`
+            // rounds with `z0`).
+            let (right, up) = (tx != 0.0, ty != 0.0);
+            for (r, c, read) in
+                [(iy, ix, true), (iy, ix + 1, right), (iy + 1, ix, up), (iy + 1, ix + 1, right && up)]
+            {
+                if read && r < ny && c < nx {
                     first[r * nx + c].get_or_insert(k);
                 }
             }
@@ -1467,6 +1475,32 @@ mod tests {
             } else {
                 assert!(changed(&whole, &sim0, 0..split), "run 1 reads the node and changes");
             }
+        }
+    }
+
+    #[test]
+    fn a_node_read_only_at_fraction_0_changes_nothing() {
+        use crate::twin::{tp07_run, Campaign};
+        // TP07 at its own scales: the set points sit on the load maps' grid lines.
+        let twin = Campaign::new(vec![tp07_run(
+            1.0,
+            1.0,
+            vec![Channel::CKistlerL, Channel::IDc, Channel::SuTMotorEnc],
+        )])
+        .expect("a campaign");
+        let base = twin.data().expect("the built-in data");
+        let (file, axis) = ("load_torque_L.csv", Axis::Load(0));
+        let sps = twin.set_points();
+        let reads = read_by_run(&base, file, axis, &sps, &twin.segments()).expect("a 2-D map");
+        let unread: Vec<usize> =
+            visited(&base, file, axis, &sps).into_iter().filter(|&i| reads[0][i].is_none()).collect();
+        assert!(!unread.is_empty(), "a neighbour at fraction 0");
+        let (fx, stride) = (Effects::NONE, 3);
+        let sim0 = twin.run_data(&base, &fx, stride).expect("base");
+        for node in unread {
+            let m = MapNodes { file, axis, nodes: vec![node], step: 5.0, limit: 10.0 };
+            let d = Arc::new(corrected(&base, &[&m], &[1.0]));
+            assert_eq!(twin.run_data(&d, &fx, stride).expect("moved"), sim0, "node {node}");
         }
     }
 
