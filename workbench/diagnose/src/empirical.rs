@@ -350,14 +350,6 @@ fn query(axis: Axis, sp: &SetPoints) -> Option<(f32, f32)> {
     Some((pct(sp.throttle_pct), load))
 }
 
-/// Whether the twin never reads table `file` on runs with set points `sps`, whatever
-/// its values, so that a change of it gives the base run bit for bit: the reverse speed
-/// map is read only at a negative throttle set point (the direction switch; a delayed
-/// command starts at 0), and a forward-only run's ten simulations of it were the base's.
-fn never_read(file: &str, sps: &[SetPoints]) -> bool {
-    file == "speed_map_rev.csv" && !sps.iter().any(|sp| sp.throttle_pct < 0.0)
-}
-
 /// Per run of a campaign (`segments`: its samples) and value of 2-D map `file`, the
 /// first step at which the model reads it at the runs' set points ([`query`]: the cell
 /// corners [`locate`] finds on each axis) with a weight that is not exactly 0, `None`
@@ -766,7 +758,7 @@ pub(super) fn correct(inp: &Inputs) -> Option<Empirical> {
         chosen.iter().map(|&m| read_by_run(&base, maps[m].file, maps[m].axis, &sps, &segments)).collect();
     let runs = run_each(&jobs, inp.o, |&(slot, k)| {
         let m = &maps[chosen[slot]];
-        if never_read(m.file, &sps) {
+        if p.unread.table(m.file) {
             return Ok(b.sim0.clone());
         }
         let mut one = vec![0.0; m.nodes.len()];
@@ -853,9 +845,8 @@ fn candidates(base: &ModelData, sps: &[SetPoints]) -> Vec<MapNodes> {
 /// ([`harmed_weights`]), added to them.
 fn screen(inp: &Inputs, base: &ModelData, maps: &[MapNodes], b: &Basis) -> (Vec<usize>, Option<usize>) {
     let jobs: Vec<(usize, bool)> = (0..maps.len()).flat_map(|m| [(m, false), (m, true)]).collect();
-    let sps = inp.twin.set_points();
     let runs: Vec<RunResult> = run_each(&jobs, inp.o, |&(m, tilt)| {
-        if never_read(maps[m].file, &sps) {
+        if inp.p.unread.table(maps[m].file) {
             return Ok(b.sim0.clone());
         }
         let n = maps[m].nodes.len();
@@ -1516,22 +1507,6 @@ mod tests {
             let m = MapNodes { file, axis, nodes: vec![node], step: 5.0, limit: 10.0 };
             let d = Arc::new(corrected(&base, &[&m], &[1.0]));
             assert_eq!(twin.run_data(&d, &fx, stride).expect("moved"), sim0, "node {node}");
-        }
-    }
-
-    #[test]
-    fn the_reverse_speed_map_is_read_only_in_reverse() {
-        use crate::twin::{tp07_run, Campaign};
-        let file = "speed_map_rev.csv";
-        for (throttle, read) in [(0.7, false), (-0.7, true)] {
-            let twin = Campaign::new(vec![tp07_run(throttle, 0.0, vec![Channel::SuTMotorEnc, Channel::IDc])])
-                .expect("a campaign");
-            assert_eq!(never_read(file, &twin.set_points()), !read, "throttle {throttle}");
-            let base = twin.data().expect("the built-in data");
-            let slow = Arc::new(reshaped(&base, file, |v, _| 0.9 * v).expect("the map"));
-            let (fx, stride) = (Effects::NONE, 3);
-            let same = twin.run_data(&slow, &fx, stride) == twin.run_data(&base, &fx, stride);
-            assert_eq!(same, !read, "throttle {throttle}: the run is the base's exactly when not read");
         }
     }
 

@@ -22,6 +22,7 @@ mod selection;
 mod sensitivities;
 mod systematic;
 mod uncertainty;
+mod unread;
 mod verdict;
 
 pub use engine::{diagnose, Diagnosis, Options, ProbeRate, ProfileProbe, Twin, VerdictKind};

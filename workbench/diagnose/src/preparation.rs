@@ -10,6 +10,7 @@ use simrod_io::progress::Progress;
 use simrod_twin::{Power, POWERS};
 
 use super::engine::{every, Options, RegionChange, Twin};
+use super::unread::Unread;
 
 /// The measurement against the current model, reduced to what the fits need: every
 /// series holds only the fit samples (every `stride`-th sample of the run), so a long
@@ -64,6 +65,9 @@ pub(super) struct Prepared {
     pub data_items: super::systematic::Items,
     /// Whether the twin's data carries an empirical correction of an earlier round.
     pub data_corrected: bool,
+    /// What the twin never reads on these runs ([`Unread`]): its responses are 0
+    /// without a simulation.
+    pub unread: Unread,
 }
 
 /// Each channel's weight `1/σ²` on each fit sample, from the noise level of the run the
@@ -217,6 +221,7 @@ pub(super) fn prepare(twin: &dyn Twin, meas: &[Vec<f64>], o: &Options) -> Result
         excess_ratio: 0.0,
         data_items: Default::default(),
         data_corrected: false,
+        unread: Unread::of(&twin.set_points(), channels),
     };
     p.e0 = energy(&p, &p.base_sim);
     p.e_noise = (p.idx.len() * channels.len()) as f64;

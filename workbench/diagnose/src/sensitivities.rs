@@ -6,7 +6,7 @@ use model_core::{Channel, Effects};
 
 use super::engine::{Options, Twin};
 use super::library::{current_value, library, with_values, ParamSpec};
-use super::preparation::{channel_energies, flagged_windows, run_all, Prepared, Weights};
+use super::preparation::{channel_energies, flagged_windows, run_each, Prepared, RunResult, Weights};
 
 /// The library's parameters and the linearised model around the current one.
 #[derive(Default)]
@@ -109,7 +109,13 @@ pub(super) fn sensitivities(twin: &dyn Twin, p: &Prepared, o: &Options) -> Resul
         .map(|(s, (v, h))| with_values(&o.base, &[s], &[v + h]))
         .collect();
     let mut sens: Vec<Vec<Vec<f64>>> = Vec::with_capacity(specs.len());
-    for r in run_all(twin, p, &jobs, o) {
+    // A parameter the twin never reads on these runs responds with the base run.
+    let pairs: Vec<(&Effects, &ParamSpec)> = jobs.iter().zip(&specs).collect();
+    let runs: Vec<RunResult> = run_each(&pairs, o, |(fx, s)| match p.unread.param(s) {
+        true => Ok(p.base_sim.clone()),
+        false => twin.run_every(fx, p.stride),
+    });
+    for r in runs {
         let y = r?;
         check_shape(p, &y)?;
         sens.push(
