@@ -264,10 +264,12 @@ fn jacobian(pb: &Problem, st: &State) -> Option<Vec<Vec<Vec<f64>>>> {
         })
         .collect();
     // A parameter the twin never reads on these runs leaves the current point's run.
-    let read: Vec<usize> = (0..thetas.len()).filter(|&i| !pb.p.unread.param(pb.specs[i])).collect();
-    let mut sims = pb.run_many(&read.iter().map(|&i| thetas[i].clone()).collect::<Vec<_>>()).into_iter();
+    let unread = |i: usize| pb.p.unread.param(pb.specs[i]);
+    let read: Vec<Vec<f64>> =
+        thetas.iter().enumerate().filter(|(i, _)| !unread(*i)).map(|(_, t)| t.clone()).collect();
+    let mut sims = pb.run_many(&read).into_iter();
     let runs: Vec<Option<Vec<Vec<f32>>>> = (0..thetas.len())
-        .map(|i| if read.contains(&i) { sims.next().flatten() } else { Some(st.sim.clone()) })
+        .map(|i| if unread(i) { Some(st.sim.clone()) } else { sims.next().flatten() })
         .collect();
     let mut jac = Vec::with_capacity(pb.specs.len());
     for (i, y) in runs.into_iter().enumerate() {

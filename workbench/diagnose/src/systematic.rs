@@ -36,7 +36,6 @@ use super::engine::{Options, Twin};
 use super::linalg::{solve_spd, sub_matrix};
 use super::preparation::{run_each, Prepared, Weights};
 use super::sensitivities::normal_equations_by;
-use super::unread::Unread;
 
 /// One uncertain item's response, `[channel][fit sample]`, at one σ of its shape (inside
 /// [`Items`], weighted: `W j`).
@@ -275,7 +274,7 @@ pub(super) fn responses(twin: &dyn Twin, p: &Prepared, o: &Options) -> Items {
     let maps: Vec<String> = others.iter().map(|m| stem(&m.name)).collect();
     let var = |name: &str| if maps.iter().any(|m| m == name) { 1.0 / 3.0 } else { 1.0 };
     let respond = |jobs: &[Moved]| -> Vec<Option<Vec<Vec<f64>>>> {
-        let runs = run_each(jobs, o, |m| match unread_item(&p.unread, &stem(&m.name)) {
+        let runs = run_each(jobs, o, |m| match p.unread.only_unread_differ(&base, &m.data) {
             true => Ok(p.base_sim.clone()),
             false => twin.run_data(&m.data, &o.base, p.stride),
         });
@@ -314,13 +313,6 @@ pub(super) fn responses(twin: &dyn Twin, p: &Prepared, o: &Options) -> Items {
         })
         .collect();
     Items::new(&p.weights, items)
-}
-
-/// Whether item `stem` ([`moved_data`]'s name without its shape) moves only what the
-/// twin never reads on these runs ([`Unread`]): a map by its file's name, a parameter
-/// group by its `+`-joined keys. Its response is the base run's, bit for bit.
-fn unread_item(u: &Unread, stem: &str) -> bool {
-    u.table(&format!("{stem}.csv")) || stem.split('+').all(|k| u.key(k))
 }
 
 /// The items' responses weighted by `W` (`W j_m`, so that every product with them is a

@@ -12,8 +12,14 @@
 //!   bench file rarely has (the clamps measure the DC side, `I_XLML`/`I_XLMR`).
 
 use model_core::{Channel, SetPoints};
+use simrod_io::datadir::{ModelData, ParamLine};
 
 use super::library::ParamSpec;
+
+/// The reverse speed map's file.
+const SPEED_REV: &str = "speed_map_rev.csv";
+/// The load motors' phase-current maps' files, L and R.
+const LOAD_CURRENT: [&str; 2] = ["load_current_L.csv", "load_current_R.csv"];
 
 /// What one campaign's twin never reads (the default: everything is read).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -35,12 +41,31 @@ impl Unread {
 
     /// Whether no value of table `file` (a data directory's file name) is read.
     pub fn table(&self, file: &str) -> bool {
-        match file {
-            "speed_map_rev.csv" => self.reverse,
-            "load_current_L.csv" => self.phase[0],
-            "load_current_R.csv" => self.phase[1],
-            _ => false,
+        match LOAD_CURRENT.iter().position(|f| *f == file) {
+            Some(i) => self.phase[i],
+            None => file == SPEED_REV && self.reverse,
         }
+    }
+
+    /// Whether `data` differs from `base` only in what is never read (so a run on it is
+    /// the run on `base`): `data` with those tables and keys put back as `base` has them
+    /// is `base`.
+    pub fn only_unread_differ(&self, base: &ModelData, data: &ModelData) -> bool {
+        let mut d = data.clone();
+        if self.table(SPEED_REV) {
+            d.speed_rev = base.speed_rev.clone();
+        }
+        for (i, file) in LOAD_CURRENT.iter().enumerate() {
+            if self.table(file) {
+                d.load_current[i] = base.load_current[i].clone();
+            }
+        }
+        for (line, b) in d.params.iter_mut().zip(&base.params) {
+            if matches!(line, ParamLine::Entry { key, .. } if self.key(key)) {
+                *line = b.clone();
+            }
+        }
+        d == *base
     }
 
     /// Whether `parameters.toml` key `key` is not read: the reverse ramp rates.
@@ -59,7 +84,6 @@ mod tests {
     use std::sync::Arc;
 
     use model_core::Effects;
-    use simrod_io::datadir::ParamLine;
 
     use super::*;
     use crate::engine::Twin;
@@ -83,10 +107,14 @@ mod tests {
             let same = |d: &Arc<_>, fx: &Effects| t.run_data(d, fx, stride).expect("moved") == sim0;
             // Tables: what is said unread leaves the run as it was; what the other
             // direction reads changes it (so the test is not empty).
+            let moved =
+                |file| Arc::new(crate::empirical::reshaped(&base, file, |v, _| 0.9 * v).expect("a map"));
             for file in ["speed_map_rev.csv", "load_current_L.csv", "load_current_R.csv"] {
-                let d = Arc::new(crate::empirical::reshaped(&base, file, |v, _| 0.9 * v).expect("a map"));
+                let d = moved(file);
                 assert_eq!(u.table(file), same(&d, &fx), "{file}, throttle {throttle}");
+                assert_eq!(u.only_unread_differ(&base, &d), u.table(file), "{file}, throttle {throttle}");
             }
+            assert!(!u.only_unread_differ(&base, &moved("speed_map_fwd.csv")), "the forward map is read");
             assert_eq!(u.table("speed_map_rev.csv"), !reverse);
             assert!(!u.table("speed_map_fwd.csv") && !u.table("axle_friction_L.csv"));
             // parameters.toml keys (which rates a run uses depends on its speeds: in
@@ -102,6 +130,7 @@ mod tests {
                         }
                     }
                 }
+                assert_eq!(u.only_unread_differ(&base, &d), u.key(key), "{key}, throttle {throttle}");
                 let unchanged = same(&Arc::new(d), &fx);
                 assert_eq!(u.key(key), !reverse, "{key}, throttle {throttle}");
                 assert!(!u.key(key) || unchanged, "{key} said unread, throttle {throttle}");
