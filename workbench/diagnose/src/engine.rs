@@ -35,7 +35,7 @@ use simrod_io::datadir::ModelData;
 use super::alias::{map_aliases, Shapes};
 use super::confounding::{confounded_groups, Leaders};
 pub use super::constancy::{Along, Drift};
-use super::dynamics::{choose_dynamics, with_siblings};
+use super::dynamics::{choose_dynamics, rank_alike, with_siblings};
 use super::empirical::{correct, Empirical, Inputs as EmpiricalInputs};
 use super::library::ParamSpec;
 use super::preparation::{prepare, Prepared};
@@ -46,7 +46,7 @@ use super::sensitivities::{sensitivities, Sensitivities};
 use super::twin::Resumable;
 use super::uncertainty::{parameter_std, Spread};
 use super::verdict::{
-    base_structure, conclude, rank, stated, structure_in, table_beats_library, Evidence, Verdict,
+    base_structure, conclude, stated, structure_in, table_beats_library, Evidence, Verdict,
     PREFER_TABLE_MARGIN,
 };
 
@@ -566,7 +566,7 @@ fn stages(
     // next by predicted reduction get their refit (a true friction ranked fourth, behind
     // sensor causes a wrong map mimics, was otherwise never tried).
     let mut next = {
-        let ranking = rank(&cands);
+        let ranking = rank_alike(&p, twin.dt_s(), &cands, &fits);
         let ev = evidence(twin, (&p, &s, o), &cands, &fits, set.as_ref(), &ranking);
         match ranking.iter().find(|c| ev.counts(c)) {
             Some(lead) => close_runners_up(&cands, &fits, lead.reduction()),
@@ -580,7 +580,7 @@ fn stages(
         fits.extend(more);
         map_aliases(twin, &p, &s, o, &selected, (&mut cands, &mut shapes));
     }
-    let ranking = rank(&cands);
+    let ranking = rank_alike(&p, twin.dt_s(), &cands, &fits);
     let group = Leaders { cands: &cands, lin: &lin, fits: &fits, ranking: &ranking };
     let confounded = confounded_groups(&group, &s, o, &p.weights.means(p.idx.len()), probe);
     let ev = Evidence {
