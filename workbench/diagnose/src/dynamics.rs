@@ -12,8 +12,8 @@
 //! chance and was named for a hidden delay (8 of the 18 false claims of proofs 20–21).
 //! When the run cannot tell the two apart the delay is named: it only shifts the
 //! channel in time, the fault any acquisition channel can have (a DAQ skew), where a lag
-//! needs a filtering stage in the sensor's path; the look-alike is still said
-//! (the confounded group).
+//! needs a filtering stage in the sensor's path. A verdict led by the delay still names
+//! the lag it is confounded with (the confounded group) and a run that would separate them.
 
 use super::engine::{Candidate, Options, Twin};
 use super::preparation::Prepared;
@@ -50,8 +50,8 @@ fn sibling(effect: &str) -> Option<String> {
 }
 
 /// Replace each selected delay (lag) by the same channel's lag (delay) when the sibling,
-/// refitted alone, is the one to name ([`prefer_sibling`]; [`sibling_group`]). Returns the refits
-/// done, by candidate index, for the confirmation to reuse.
+/// refitted alone, is the one to name ([`prefer_sibling`], [`sibling_group`]). Returns
+/// the refits done, by candidate index, for the confirmation to reuse.
 pub(super) fn choose_dynamics(
     twin: &dyn Twin,
     p: &Prepared,
