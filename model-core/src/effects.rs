@@ -798,7 +798,7 @@ impl fmt::Display for DelayTooLong {
 }
 
 /// Whole steps of `seconds` at `dt_s`, as the model rounds a delay.
-fn delay_steps(seconds: f32, dt_s: f64) -> u64 {
+pub fn delay_steps(seconds: f32, dt_s: f64) -> u64 {
     (f64::from(seconds) / dt_s + 0.5) as u64
 }
 

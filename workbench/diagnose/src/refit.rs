@@ -3,6 +3,8 @@
 //! scan after, since a rugged objective (backlash events, a clipping limit) hides narrow
 //! basins from a local search. The error a refit removes is measured, not predicted.
 
+use model_core::chain::SENSOR_DELAY_CAPACITY;
+use model_core::effects::delay_steps;
 use model_core::Effects;
 
 use super::engine::{Candidate, Options, Twin};
@@ -75,10 +77,38 @@ struct Problem<'a> {
 }
 
 impl Problem<'_> {
+    /// Into the declared ranges, and every sensor delay into what the shared delay line
+    /// leaves it ([`Problem::upper`]) beside the ones before it, so that together they fit.
     fn clamp(&self, v: &mut [f64]) {
         for (x, s) in v.iter_mut().zip(self.specs) {
             *x = x.clamp(s.lower, s.upper);
         }
+        for i in 0..v.len() {
+            let mut before = v.to_vec();
+            for (x, s) in before.iter_mut().zip(self.specs).skip(i + 1) {
+                *x = s.neutral;
+            }
+            v[i] = v[i].min(self.upper(i, &before));
+        }
+    }
+
+    /// The largest value parameter `i` may take at `theta`: its declared upper end, and
+    /// for a sensor delay at most what the model's delay line holds beside every other
+    /// channel's delay in the effects run — the line holds
+    /// [`SENSOR_DELAY_CAPACITY`] steps for all channels together and the model cuts the
+    /// rest, so beyond it a refit saw a flat objective (a 0.1 s skew of I_DPU 2.7 beside a
+    /// 40 ms SuTMotorEnc delay fitted 0.1 s with σ undetermined, and a lag was named).
+    fn upper(&self, i: usize, theta: &[f64]) -> f64 {
+        let s = self.specs[i];
+        if s.effect != "sensor_delay" {
+            return s.upper;
+        }
+        let mut others = theta.to_vec();
+        others[i] = s.neutral;
+        let dt = self.twin.dt_s();
+        let taken: u64 = self.effects(&others).sensor_delay_s.iter().map(|d| delay_steps(*d, dt)).sum();
+        let room = SENSOR_DELAY_CAPACITY.saturating_sub(usize::try_from(taken).unwrap_or(usize::MAX));
+        s.upper.min(room as f64 * dt)
     }
 
     fn effects(&self, theta: &[f64]) -> Effects {
@@ -100,11 +130,11 @@ impl Problem<'_> {
             .collect()
     }
 
-    /// Forward-difference step of parameter `i` at `v`: half the sensitivity step (closer
-    /// to linear), backwards at the upper bound.
-    fn step(&self, i: usize, v: f64) -> f64 {
+    /// Forward-difference step of parameter `i` at `theta`: half the sensitivity step
+    /// (closer to linear), backwards at the upper bound.
+    fn step(&self, i: usize, theta: &[f64]) -> f64 {
         let s = self.specs[i];
-        if v + 0.5 * s.delta <= s.upper {
+        if theta[i] + 0.5 * s.delta <= self.upper(i, theta) {
             0.5 * s.delta
         } else {
             -0.5 * s.delta
@@ -236,7 +266,7 @@ const PROFILE_STEPS: u32 = 12;
 /// range), so that a non-smooth or strongly nonlinear response cannot trap the local
 /// search near the linear estimate. Moves `st` to the best point.
 fn coarse_grid(pb: &Problem, s0: &ParamSpec, st: &mut State) {
-    let (lo, hi) = (s0.lower, s0.upper);
+    let (lo, hi) = (s0.lower, pb.upper(0, &st.theta));
     let n = f64::from(COARSE_STEPS);
     let grid: Vec<f64> = if lo > 0.0 && hi / lo > 20.0 {
         (0..=COARSE_STEPS).map(|i| lo * (hi / lo).powf(f64::from(i) / n)).collect()
@@ -259,7 +289,7 @@ fn jacobian(pb: &Problem, st: &State) -> Option<Vec<Vec<Vec<f64>>>> {
     let thetas: Vec<Vec<f64>> = (0..pb.specs.len())
         .map(|i| {
             let mut t = st.theta.clone();
-            t[i] += pb.step(i, st.theta[i]);
+            t[i] += pb.step(i, &st.theta);
             t
         })
         .collect();
@@ -274,7 +304,7 @@ fn jacobian(pb: &Problem, st: &State) -> Option<Vec<Vec<Vec<f64>>>> {
     let mut jac = Vec::with_capacity(pb.specs.len());
     for (i, y) in runs.into_iter().enumerate() {
         let y = y?;
-        let h = pb.step(i, st.theta[i]);
+        let h = pb.step(i, &st.theta);
         jac.push(
             y.iter()
                 .zip(&st.sim)
@@ -379,7 +409,7 @@ pub(super) fn in_scale(g: &[f64], b: &[f64], scale: &[f64]) -> (Vec<f64>, Vec<f6
 fn profile_scan(pb: &Problem, s0: &ParamSpec, fit: &mut Fit) {
     let v0 = fit.values[0];
     let half = (0.25 * (v0 - s0.neutral).abs()).max(s0.delta);
-    let (lo, hi) = ((v0 - half).max(s0.lower), (v0 + half).min(s0.upper));
+    let (lo, hi) = ((v0 - half).max(s0.lower), (v0 + half).min(pb.upper(0, &fit.values)));
     let n = f64::from(PROFILE_STEPS);
     let grid: Vec<Vec<f64>> = (0..=PROFILE_STEPS).map(|i| vec![lo + (hi - lo) * f64::from(i) / n]).collect();
     let mut prof = vec![(v0, fit.energy)];
@@ -515,6 +545,36 @@ mod tests {
             ..Prepared::default()
         };
         (twin, p)
+    }
+
+    /// The model's delay line holds 128 steps for all channels together (1.28 s at this
+    /// twin's 10 ms): beside 1.20 s already on SuTMotorEnc, I_DPU 2.7's delay may go to
+    /// 0.08 s, not its declared 0.1 s; the Jacobian steps back from there; a second
+    /// delay in the same refit gets what is left (nothing), so together they fit.
+    #[test]
+    fn a_sensor_delay_is_searched_only_as_far_as_the_delay_line_holds() {
+        let (twin, p) = setup(10);
+        let mut base = Effects::NONE;
+        base.sensor_delay_s[1] = 1.2;
+        let o = Options { base, ..Options::default() };
+        let lib = crate::library::library(&o.params);
+        let spec =
+            |q: &str| lib.iter().find(|s| s.effect == "sensor_delay" && s.param == q).cloned().unwrap();
+        let (dpu, vdc) = (spec("i_dpu_2_7"), spec("v_dc"));
+        assert_eq!(dpu.upper, 0.1);
+        let specs = [&dpu, &vdc];
+        let pb = Problem { twin: &twin, p: &p, o: &o, specs: &specs };
+        let mut theta = vec![0.1, 0.1];
+        pb.clamp(&mut theta);
+        assert!((theta[0] - 0.08).abs() < 1e-12 && theta[1] == 0.0, "{theta:?}");
+        assert!(pb.effects(&theta).check_delays(10_000).is_ok());
+        assert!(pb.step(0, &[0.075, 0.0]) < 0.0 && pb.step(0, &[0.05, 0.0]) > 0.0);
+        // Without the other delay the declared range holds.
+        let free = Options::default();
+        let pb = Problem { twin: &twin, p: &p, o: &free, specs: &specs };
+        let mut theta = vec![0.1, 0.1];
+        pb.clamp(&mut theta);
+        assert_eq!(theta, [0.1, 0.1]);
     }
 
     /// Levenberg–Marquardt on a known nonlinear function: both parameters of an
