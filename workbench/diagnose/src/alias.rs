@@ -21,7 +21,7 @@ use simrod_io::datadir::ModelData;
 
 use super::empirical::{map_files, reshaped, Shift};
 use super::engine::{Candidate, MapAlias, MapShape, Options, Twin, MOVES_SHARE};
-use super::preparation::{run_each, Prepared, Weights};
+use super::preparation::{residual, run_each, Prepared, Weights};
 use super::sensitivities::Sensitivities;
 
 /// Share of a sensor cause's removed error (its refit, on the simulator; a set member's
@@ -77,12 +77,7 @@ pub(super) fn map_aliases(
     let Some(base) = twin.data().filter(|_| !sensors.is_empty()) else { return };
     let needed = |shape: MapShape| sensors.iter().any(|x| x.shape == shape);
     let Some((sim0, responses)) = responses(twin, (p, o), &base, needed, memo) else { return };
-    let r: Vec<Vec<f64>> = p
-        .meas
-        .iter()
-        .zip(&sim0)
-        .map(|(m, s0)| p.idx.iter().map(|&t| m[t] - f64::from(s0[t])).collect())
-        .collect();
+    let r = residual(p, &sim0);
     for x in &sensors {
         let best = responses
             .iter()

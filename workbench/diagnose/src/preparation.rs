@@ -412,6 +412,11 @@ pub(super) fn run_each<J: Sync>(
     out
 }
 
+/// Measured minus simulated, per channel on the fit samples.
+pub(super) fn residual(p: &Prepared, sim: &[Vec<f32>]) -> Vec<Vec<f64>> {
+    p.meas.iter().zip(sim).map(|(m, s)| p.idx.iter().map(|&t| m[t] - f64::from(s[t])).collect()).collect()
+}
+
 /// Weighted squared error of `sim` against the measurement on the fit samples.
 pub(super) fn energy(p: &Prepared, sim: &[Vec<f32>]) -> f64 {
     let mut e = 0.0;

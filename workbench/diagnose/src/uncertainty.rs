@@ -24,7 +24,7 @@
 use super::constancy::{drift, Drift};
 use super::library::ParamSpec;
 use super::linalg::{quad, solve_spd};
-use super::preparation::{Prepared, Weights};
+use super::preparation::{residual, Prepared, Weights};
 use super::refit::Fit;
 use super::sensitivities::normal_equations_by;
 use super::systematic::systematic_std;
@@ -53,11 +53,6 @@ pub(super) struct Spread {
 /// to twice that).
 fn level_window(p: &Prepared, dt: f64) -> usize {
     ((1.0 / (dt * p.stride as f64)).round() as usize).max(3)
-}
-
-/// Measured minus simulated, per channel on the fit samples.
-fn residual(p: &Prepared, sim: &[Vec<f32>]) -> Vec<Vec<f64>> {
-    p.meas.iter().zip(sim).map(|(m, s)| p.idx.iter().map(|&t| m[t] - f64::from(s[t])).collect()).collect()
 }
 
 /// How many standard deviations of the noise separate two fits of one run: the energy
