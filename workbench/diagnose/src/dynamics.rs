@@ -102,14 +102,12 @@ pub(super) fn rank_alike(
     fits: &[(usize, Fit)],
 ) -> Vec<Candidate> {
     let mut ranking = rank(cands);
-    let fit_of = |name: &str| fits.iter().find(|(ci, _)| cands.get(*ci).is_some_and(|c| c.effect == name));
-    for (ci, lag) in fits {
-        let Some(lag_name) = cands.get(*ci).map(|c| c.effect).filter(|e| e.starts_with(LAG)) else {
-            continue;
-        };
-        let Some((_, delay)) = sibling(lag_name).and_then(|d| fit_of(&d)) else { continue };
-        let at = |name: &str| ranking.iter().position(|c| c.effect == name);
-        let (Some(i), Some(j)) = (at(lag_name), sibling(lag_name).and_then(|d| at(&d))) else { continue };
+    let name = |ci: usize| cands.get(ci).map_or("", |c| c.effect);
+    for (ci, lag) in fits.iter().filter(|(ci, _)| name(*ci).starts_with(LAG)) {
+        let Some(delay_name) = sibling(name(*ci)) else { continue };
+        let Some((_, delay)) = fits.iter().find(|(cj, _)| name(*cj) == delay_name) else { continue };
+        let at = |e: &str| ranking.iter().position(|c| c.effect == e);
+        let (Some(i), Some(j)) = (at(name(*ci)), at(&delay_name)) else { continue };
         if i < j && prefer_sibling(p, dt, lag, delay, DELAY) {
             let d = ranking.remove(j);
             ranking.insert(i, d);
@@ -160,7 +158,10 @@ mod tests {
             let noise = crate::preparation::tests::gaussian(7, n);
             let meas = vec![noise.iter().zip(&d).map(|(e, v)| e + 0.6 * f64::from(*v)).collect()];
             let p = Prepared::single_run(meas, vec![("SuTMotorEnc", 1.0)], vec![vec![0.0; n]]);
-            let (fd, fl) = (Fit::of_sim(&p, vec![vec![0.0; n]]), Fit::of_sim(&p, vec![d]));
+            let fit = |sim: Vec<Vec<f32>>| {
+                Fit::fixed(Vec::new(), sim.clone(), crate::preparation::energy(&p, &sim))
+            };
+            let (fd, fl) = (fit(vec![vec![0.0; n]]), fit(vec![d]));
             let z = separation(&p, &fd, &fl, 0.001);
             assert!(fl.energy < fd.energy && (z.abs() < ALIKE_Z) == alike, "z {z}");
             assert_eq!(prefer_sibling(&p, 0.001, &fl, &fd, delay), alike);

@@ -7,6 +7,9 @@ use model_core::chain::SENSOR_DELAY_CAPACITY;
 use model_core::effects::delay_steps;
 use model_core::Effects;
 
+/// The effect whose parameters share the model's delay line ([`Problem::upper`]).
+const SENSOR_DELAY: &str = "sensor_delay";
+
 use super::engine::{Candidate, Options, Twin};
 use super::library::{with_values, ParamSpec};
 use super::linalg::solve_spd;
@@ -83,7 +86,7 @@ impl Problem<'_> {
         for (x, s) in v.iter_mut().zip(self.specs) {
             *x = x.clamp(s.lower, s.upper);
         }
-        for i in 0..v.len() {
+        for i in (0..v.len()).filter(|&i| self.specs[i].effect == SENSOR_DELAY) {
             let mut before = v.to_vec();
             for (x, s) in before.iter_mut().zip(self.specs).skip(i + 1) {
                 *x = s.neutral;
@@ -100,14 +103,14 @@ impl Problem<'_> {
     /// 40 ms SuTMotorEnc delay fitted 0.1 s with σ undetermined, and a lag was named).
     fn upper(&self, i: usize, theta: &[f64]) -> f64 {
         let s = self.specs[i];
-        if s.effect != "sensor_delay" {
+        if s.effect != SENSOR_DELAY {
             return s.upper;
         }
         let mut others = theta.to_vec();
         others[i] = s.neutral;
         let dt = self.twin.dt_s();
         let taken: u64 = self.effects(&others).sensor_delay_s.iter().map(|d| delay_steps(*d, dt)).sum();
-        let room = SENSOR_DELAY_CAPACITY.saturating_sub(usize::try_from(taken).unwrap_or(usize::MAX));
+        let room = (SENSOR_DELAY_CAPACITY as u64).saturating_sub(taken);
         s.upper.min(room as f64 * dt)
     }
 
@@ -459,21 +462,6 @@ pub(super) fn confirm(cand: &mut Candidate, fit: &Fit, spread: &Spread, specs: &
         region_errors(p, &p.regions, |c, k| f64::from(fit.sim[c][p.idx[k]]) - p.base[c][p.idx[k]]);
     for (rc, conf) in cand.regions.iter_mut().zip(confirmed) {
         rc.confirmed = Some(conf.predicted);
-    }
-}
-
-#[cfg(test)]
-impl Fit {
-    /// A refit that ended at `sim` (no parameters): the tests' stand-in.
-    pub(crate) fn of_sim(p: &Prepared, sim: Vec<Vec<f32>>) -> Fit {
-        Fit {
-            values: Vec::new(),
-            energy: energy(p, &sim),
-            sim,
-            jac: Vec::new(),
-            profile: Vec::new(),
-            held: None,
-        }
     }
 }
 

@@ -478,7 +478,10 @@ mod tests {
             let noise = ar1(seed, n, phi, 1.0);
             let meas = vec![noise.iter().zip(&sim_b[0]).map(|(e, b)| e + towards * f64::from(*b)).collect()];
             let p = Prepared::single_run(meas, vec![("X", sigma)], sim_a.clone());
-            let (a, b) = (Fit::of_sim(&p, sim_a.clone()), Fit::of_sim(&p, sim_b.clone()));
+            let fit = |sim: &Vec<Vec<f32>>| {
+                Fit::fixed(Vec::new(), sim.clone(), crate::preparation::energy(&p, sim))
+            };
+            let (a, b) = (fit(&sim_a), fit(&sim_b));
             separation(&p, &a, &b, 1.0 / 1000.0)
         };
         let rejected = (0..300).filter(|&seed| z_of(900 + seed, 0.5).abs() > 1.96).count();
