@@ -29,6 +29,16 @@ const LAG: &str = "sensor_lag.";
 /// and its lag fit alike: the run does not say which it is.
 const ALIKE_Z: f64 = 2.0;
 
+/// Whether the refits `a` and `b` fit alike: the run does not tell them apart.
+pub(super) fn fit_alike(p: &Prepared, dt: f64, a: &Fit, b: &Fit) -> bool {
+    separation(p, a, b, dt).abs() < ALIKE_Z
+}
+
+/// The delay of the same channel as lag `effect` (`None` for anything but a lag).
+pub(super) fn delay_of(effect: &str) -> Option<String> {
+    effect.strip_prefix(LAG).map(|channel| format!("{DELAY}{channel}"))
+}
+
 /// Whether to name the sibling `b` rather than `a`, refitted both: the better fit where
 /// the run tells them apart, else the delay.
 fn prefer_sibling(p: &Prepared, dt: f64, a: &Fit, b: &Fit, b_name: &str) -> bool {

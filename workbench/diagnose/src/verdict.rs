@@ -6,6 +6,7 @@
 use model_core::{Channel, Effects};
 
 use super::constancy::Along;
+use super::dynamics::{delay_of, fit_alike};
 use super::engine::{
     by_cause, Candidate, ConfoundedGroup, FittedParam, Location, MapAlias, MapShape, Options, SetFit, Stated,
     VerdictKind,
@@ -73,6 +74,12 @@ pub(super) struct Verdict {
     pub removed: f64,
 }
 
+/// Why `c` is refused when its value drifts over the run, with speed or with the load
+/// ([`Candidate::drift`]).
+fn drifts(c: &Candidate) -> Option<String> {
+    c.drift.as_ref().map(|d| format!("its {} {}", d.param, d.along.what()))
+}
+
 impl Evidence<'_> {
     /// [s] between fit samples (the series in [`Prepared`] hold only those).
     fn dt_fit(&self) -> f64 {
@@ -99,11 +106,12 @@ impl Evidence<'_> {
     /// The refusals that no map correction beside the candidate can lift: its value
     /// drifts over the run ([`Candidate::drift`]), it was not refitted, its refit removed
     /// less than `min_reduction_of_noise` of the noise energy, one shape of a map does
-    /// what it does ([`Candidate::map_alias`]), or it is a one-channel cause that only
-    /// absorbs part of what else is wrong on its channel ([`Self::absorbs`]).
+    /// what it does ([`Candidate::map_alias`]), it is a one-channel cause that only
+    /// absorbs part of what else is wrong on its channel ([`Self::absorbs`]), or it is a
+    /// lag whose delay fits alike and is refused ([`Self::alike_delay_refused`]).
     fn refusal_but_worse(&self, c: &Candidate) -> Option<String> {
-        if let Some(d) = &c.drift {
-            return Some(format!("its {} {}", d.param, d.along.what()));
+        if let Some(why) = drifts(c) {
+            return Some(why);
         }
         let Some(f) = self.after(c.effect) else { return Some("it was not refitted".into()) };
         if let Some((sp, v)) = self.at_end(c) {
@@ -115,6 +123,14 @@ impl Evidence<'_> {
         if f.credit(self.p.e0) < self.o.min_reduction_of_noise * self.p.e_noise && !self.clears_structure(c) {
             return Some("its refit removes less than a chance fit of the noise".into());
         }
+        self.refusal_of_shape(c, f).or_else(|| self.alike_delay_refused(c, f))
+    }
+
+    /// The refusals of `c` (refitted as `f`) for what its refit does, not how much: one
+    /// cause on two channels ([`Self::fault_alike`]), one shape of a map doing as well
+    /// ([`Candidate::map_alias`]), or only part of its channel's error absorbed
+    /// ([`Self::absorbs`]).
+    fn refusal_of_shape(&self, c: &Candidate, f: &Fit) -> Option<String> {
         if let Some((twin, v, w)) = self.fault_alike(c) {
             return Some(format!(
                 "{} fits alike ({w:.4} for {v:.4}): one cause on both channels, not a fault of one sensor",
@@ -131,6 +147,23 @@ impl Evidence<'_> {
             ));
         }
         None
+    }
+
+    /// For lag `c` (refitted as `lag`) whose channel's delay fits alike ([`fit_alike`])
+    /// and is significant but refused for its drift or its shape, that refusal: the run
+    /// cannot tell the two apart, so what refuses the one refuses the other (tuning case
+    /// 505,194: a 53 ms skew's delay refused as drifting over the run, its alike lag
+    /// named instead). Not a refusal for how much the delay removes: the lag's own
+    /// refit answers that.
+    fn alike_delay_refused(&self, c: &Candidate, lag: &Fit) -> Option<String> {
+        let name = delay_of(c.effect)?;
+        let d = self.cands.iter().find(|d| d.effect == name && d.significant)?;
+        let delay = self.after(d.effect)?;
+        if !fit_alike(self.p, self.dt, lag, delay) {
+            return None;
+        }
+        let why = drifts(d).or_else(|| self.refusal_of_shape(d, delay))?;
+        Some(format!("{} fits alike and is refused: {why}", d.effect))
     }
 
     /// For a measurement-chain cause `c`, a significant candidate of the same kind on
@@ -486,16 +519,14 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
         return None;
     }
     // A sensor member that leaves its channel above the noise only absorbs error there.
-    // A member that drifts when fitted alone may be averaging a partner's effect, which
-    // the joint refit takes from it (an axle friction scale beside a connector
-    // resistance, each drifting with the load alone); it stays only when the set holds
-    // it clear of the thesis value by more than the data's uncertainty (the set's own
-    // drift is tested below). Two sensor members of one kind held alike are one cause on
-    // both channels, not two sensors ([`SetFit::alike_partner`]).
+    // A member without support of its own ([`SetFit::unsupported`]) may be averaging a
+    // partner's effect (the set's own drift is tested below). Two sensor members of one
+    // kind held alike are one cause on both channels, not two sensors
+    // ([`SetFit::alike_partner`]).
     let member = |e: &&'static str| ev.cands.iter().find(|c| c.effect == *e);
     if set.effects.iter().filter_map(member).any(|c| {
         ev.absorbs(c, &set.fit.sim)
-            || (c.drift.is_some() && !set.clear_of_neutral(c.effect))
+            || set.unsupported(c)
             || set.alike_partner(c.effect)
             || c.map_alias.is_some()
     }) || set.effects.iter().any(|e| !set.supports(e))
@@ -1095,6 +1126,58 @@ mod tests {
             confounded: &[],
             base_structure: base_structure(p, channels, dt),
         }
+    }
+
+    /// A lag whose channel's delay fits alike shares the delay's refusal for its drift
+    /// (tuning case 505,194): both refits take a large common signal, and differ by bumps
+    /// of 0.1 σ (alike) or 1 σ (told apart, the lag counts on its own). A delay that is
+    /// not refused refuses nothing.
+    #[test]
+    fn a_lag_shares_the_refusal_of_a_delay_that_fits_alike() {
+        let (n, dt) = (20_000, 0.001);
+        let channels = [Channel::SuTMotorEnc];
+        let o = Options::default();
+        let s = supply_resistance_only(&o);
+        let (lag, delay) = ("sensor_lag.sutmotorenc", "sensor_delay.sutmotorenc");
+        let common = |k: usize| 3.0 * (k as f64 * 0.002).sin();
+        let judge = |size: f64, drift: bool| {
+            let bump = |k: usize| if k % 2000 < 200 { size * (k as f64 * 0.0157).sin() } else { 0.0 };
+            let noise = gaussian(11, n);
+            let meas = vec![(0..n).map(|k| noise[k] + common(k) + 0.6 * bump(k)).collect()];
+            let p = Prepared::single_run(meas, vec![("SuTMotorEnc", 1.0)], vec![vec![0.0; n]]);
+            let fit = |with_bump: f64| {
+                let sim =
+                    vec![(0..n).map(|k| (common(k) + with_bump * bump(k)) as f32).collect::<Vec<f32>>()];
+                let energy = super::super::preparation::energy(&p, &sim);
+                Fit::fixed(Vec::new(), sim, energy)
+            };
+            let cand = |effect: &'static str, f: &Fit| Candidate {
+                confirmed_reduction: Some(((p.e0 - f.energy) / p.excess).clamp(0.0, 1.0)),
+                energy_after: Some(f.energy),
+                significant: true,
+                ..Candidate::named(effect, 0.9)
+            };
+            let (fl, fd) = (fit(1.0), fit(0.0));
+            let along = Along::Time;
+            let d = Candidate {
+                drift: drift.then_some(super::super::constancy::Drift {
+                    param: "sutmotorenc",
+                    along,
+                    first: 0.03,
+                    last: 0.05,
+                }),
+                ..cand(delay, &fd)
+            };
+            let cands = vec![cand(lag, &fl), d];
+            let fits = vec![(0, fl), (1, fd)];
+            let ev = one_candidate(&p, &s, &o, &channels, dt, (&cands, &fits));
+            (ev.refusal(&cands[0]), ev.refusal(&cands[1]).is_some())
+        };
+        let shared =
+            "sensor_delay.sutmotorenc fits alike and is refused: its sutmotorenc drifts over the run";
+        assert_eq!(judge(0.1, true), (Some(shared.to_string()), true));
+        assert_eq!(judge(1.0, true), (None, true));
+        assert_eq!(judge(0.1, false), (None, false));
     }
 
     /// A cause whose error is confined to 2 s of a 60 s run (0.6 σ on one channel) removes
