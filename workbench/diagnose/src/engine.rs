@@ -993,6 +993,14 @@ mod tests {
         }
     }
 
+    /// The library's parameters of `effect`, in declaration order.
+    fn effect_specs(effect: &str) -> Vec<ParamSpec> {
+        super::super::library::library(&Params::default())
+            .into_iter()
+            .filter(|s| s.effect == effect)
+            .collect()
+    }
+
     /// A member the joint fit moves by 3 σ is supported; one it leaves within 1 σ of its
     /// start is not, nor one whose σ is undetermined.
     #[test]
@@ -1017,8 +1025,6 @@ mod tests {
     /// model's value, not one moved elsewhere.
     #[test]
     fn only_held_members_refitted_back_to_neutral_are_returned() {
-        let lib = super::super::library::library(&Params::default());
-        let specs = |e: &str| lib.iter().filter(|s| s.effect == e).cloned().collect::<Vec<_>>();
         // Per member, (start, value, reported σ) of each parameter, in library order.
         type Member = (&'static str, &'static [(f64, f64, f64)]);
         let members: [Member; 6] = [
@@ -1037,7 +1043,7 @@ mod tests {
         ];
         let (mut sp, mut starts, mut values, mut sd) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for (e, ps) in members {
-            let own = specs(e);
+            let own = effect_specs(e);
             assert_eq!(own.len(), ps.len(), "{e}'s parameters");
             for (s, &(s0, v, d)) in own.into_iter().zip(ps) {
                 sp.push(s);
@@ -1058,9 +1064,7 @@ mod tests {
     /// maps) is not, nor is one that only its statistical σ would hold clear.
     #[test]
     fn a_member_is_clear_of_neutral_only_by_its_reported_interval() {
-        let lib = super::super::library::library(&Params::default());
-        let axle: Vec<ParamSpec> =
-            lib.iter().filter(|s| s.effect == "axle_friction_scale").cloned().collect();
+        let axle = effect_specs("axle_friction_scale");
         assert_eq!(axle.len(), 2, "left and right");
         let set = |values: Vec<f64>, std: Vec<f64>, reported: Vec<f64>| {
             set_at((vec![axle[0].cause], axle.clone()), values, (std, reported), vec![1.0, 1.0])
@@ -1083,9 +1087,7 @@ mod tests {
     /// a member already in the model is judged on its drift alone.
     #[test]
     fn a_new_member_without_support_alone_must_be_clear_of_neutral() {
-        let lib = super::super::library::library(&Params::default());
-        let diff: Vec<ParamSpec> =
-            lib.iter().filter(|s| s.effect == "differential_friction").cloned().collect();
+        let diff = effect_specs("differential_friction");
         assert_eq!(diff.len(), 2, "Coulomb and viscous");
         let set = |values: Vec<f64>, half: [f64; 2], starts: Vec<f64>| {
             let sd = vec![half[0] / 1.96, half[1] / 1.96];
@@ -1135,9 +1137,7 @@ mod tests {
             !apart.alike_partner("sensor_gain.c_kistler_l")
                 && !apart.alike_partner("sensor_gain.c_kistler_r")
         );
-        let axle: Vec<ParamSpec> =
-            lib.iter().filter(|s| s.effect == "axle_friction_scale").cloned().collect();
-        let physical = set(axle, vec![1.0805, 1.0809]);
+        let physical = set(effect_specs("axle_friction_scale"), vec![1.0805, 1.0809]);
         assert!(!physical.alike_partner("axle_friction_scale"), "one effect's two sides, not sensors");
     }
 }
