@@ -159,11 +159,9 @@ impl Evidence<'_> {
         let name = delay_of(c.effect)?;
         let d = self.cands.iter().find(|d| d.effect == name && d.significant)?;
         let delay = self.after(d.effect)?;
-        if !fit_alike(self.p, self.dt, lag, delay) {
-            return None;
-        }
         let why = drifts(d).or_else(|| self.refusal_of_shape(d, delay))?;
-        Some(format!("{} fits alike and is refused: {why}", d.effect))
+        fit_alike(self.p, self.dt, lag, delay)
+            .then(|| format!("{} fits alike and is refused: {why}", d.effect))
     }
 
     /// For a measurement-chain cause `c`, a significant candidate of the same kind on
@@ -1158,11 +1156,10 @@ mod tests {
                 ..Candidate::named(effect, 0.9)
             };
             let (fl, fd) = (fit(1.0), fit(0.0));
-            let along = Along::Time;
             let d = Candidate {
                 drift: drift.then_some(super::super::constancy::Drift {
                     param: "sutmotorenc",
-                    along,
+                    along: Along::Time,
                     first: 0.03,
                     last: 0.05,
                 }),
