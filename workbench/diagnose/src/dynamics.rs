@@ -52,11 +52,7 @@ fn prefer_sibling(p: &Prepared, dt: f64, a: &Fit, b: &Fit, b_name: &str) -> bool
 
 /// The other dynamic cause of the same channel: the lag of a delay and the delay of a lag.
 fn sibling(effect: &str) -> Option<String> {
-    match (effect.strip_prefix(DELAY), effect.strip_prefix(LAG)) {
-        (Some(channel), _) => Some(format!("{LAG}{channel}")),
-        (_, Some(channel)) => Some(format!("{DELAY}{channel}")),
-        _ => None,
-    }
+    delay_of(effect).or_else(|| effect.strip_prefix(DELAY).map(|channel| format!("{LAG}{channel}")))
 }
 
 /// Replace each selected delay (lag) by the same channel's lag (delay) when the sibling,

@@ -841,18 +841,14 @@ impl SetFit {
     /// (a differential friction that only its partner's misfit holds off zero, for a
     /// bearing drag the library lacks: tuning cases 505,123 and 505,134).
     pub fn unsupported(&self, c: &Candidate) -> bool {
-        let alone = c.drift.is_none() && (c.significant || !self.is_new(c.effect));
+        let alone = c.drift.is_none() && (c.significant || self.held(c.effect));
         !alone && !self.clear_of_neutral(c.effect)
     }
 
-    /// Whether member `effect` is new to the model: every parameter of it started at its
-    /// neutral value.
-    fn is_new(&self, effect: &str) -> bool {
-        self.specs
-            .iter()
-            .zip(&self.starts)
-            .filter(|(sp, _)| sp.cause == effect)
-            .all(|(sp, s0)| *s0 == sp.neutral)
+    /// Whether member `effect` was already in the model: some parameter of it started off
+    /// its neutral value.
+    fn held(&self, effect: &str) -> bool {
+        self.specs.iter().zip(&self.starts).any(|(sp, s0)| sp.cause == effect && sp.off_neutral(*s0))
     }
 
     /// Whether some parameter of `effect` has its reported 95 % interval clear of the
@@ -880,13 +876,12 @@ impl SetFit {
     pub fn returned(&self) -> Vec<&'static str> {
         let mut out: Vec<&'static str> = Vec::new();
         for &e in &self.effects {
-            let (mut held, mut holds, mut excludes) = (false, true, false);
+            let (mut holds, mut excludes) = (true, false);
             for (sp, s0, (lo, hi)) in self.intervals(e) {
-                held |= sp.off_neutral(s0);
                 holds &= lo <= sp.neutral && sp.neutral <= hi;
                 excludes |= s0 < lo || s0 > hi;
             }
-            if held && holds && excludes {
+            if self.held(e) && holds && excludes {
                 out.push(e);
             }
         }
