@@ -6,7 +6,7 @@
 use model_core::{Channel, Effects};
 
 use super::constancy::Along;
-use super::dynamics::{delay_of, fit_alike};
+use super::dynamics::{delay_of, fit_alike, is_dynamic_sensor, ALIKE_Z, PHYSICAL_DELAY};
 use super::engine::{
     by_cause, Candidate, ConfoundedGroup, FittedParam, Location, MapAlias, MapShape, Options, SetFit, Stated,
     VerdictKind,
@@ -17,6 +17,7 @@ use super::preparation::{channel_energies, flagged_windows, worse_somewhere, Pre
 use super::refit::Fit;
 use super::selection::{absorbs, is_gauge};
 use super::sensitivities::Sensitivities;
+use super::uncertainty::separation;
 use simrod_compare::structure;
 
 /// Refitted and significant candidates first: those whose refit leaves no structure in
@@ -107,8 +108,9 @@ impl Evidence<'_> {
     /// drifts over the run ([`Candidate::drift`]), it was not refitted, its refit removed
     /// less than `min_reduction_of_noise` of the noise energy, one shape of a map does
     /// what it does ([`Candidate::map_alias`]), it is a one-channel cause that only
-    /// absorbs part of what else is wrong on its channel ([`Self::absorbs`]), or it is a
-    /// lag whose delay fits alike and is refused ([`Self::alike_delay_refused`]).
+    /// absorbs part of what else is wrong on its channel ([`Self::absorbs`]), it is a
+    /// lag whose delay fits alike and is refused ([`Self::alike_delay_refused`]), or a
+    /// delay or lag the physical delay fits as well as ([`Self::physical_alike`]).
     fn refusal_but_worse(&self, c: &Candidate) -> Option<String> {
         if let Some(why) = drifts(c) {
             return Some(why);
@@ -123,7 +125,28 @@ impl Evidence<'_> {
         if f.credit(self.p.e0) < self.o.min_reduction_of_noise * self.p.e_noise && !self.clears_structure(c) {
             return Some("its refit removes less than a chance fit of the noise".into());
         }
-        self.refusal_of_shape(c, f).or_else(|| self.alike_delay_refused(c, f))
+        self.refusal_of_shape(c, f)
+            .or_else(|| self.alike_delay_refused(c, f))
+            .or_else(|| self.physical_alike(c, f))
+    }
+
+    /// For a channel's delay or lag `c` (refitted as `f`), why [`PHYSICAL_DELAY`] —
+    /// refitted, moving that channel and others — leaves it nothing to name: it fits as
+    /// well or better ([`separation`] under [`ALIKE_Z`] in the sensor's favour). A late
+    /// sensor moves its channel alone; where the channels a physical delay also moves do
+    /// not tell the two apart (beside wrong maps), the run cannot say which it is, and the
+    /// sensor would be claimed for a controller delay (tuning 505,240, 505,354; proof
+    /// 1,007,372). Not for a physical delay already in the set that names `c`.
+    pub(super) fn physical_alike(&self, c: &Candidate, f: &Fit) -> Option<String> {
+        let channel = c.moves.first().filter(|_| is_dynamic_sensor(c.effect))?;
+        let d = self.cands.iter().find(|d| d.effect == PHYSICAL_DELAY && d.moves.contains(channel))?;
+        let g = self.after(d.effect)?;
+        let z = separation(self.p, g, f, self.dt);
+        (z < ALIKE_Z).then(|| {
+            let v = d.params.first().map_or(f64::NAN, |fp| fp.value);
+            let how = if z <= -ALIKE_Z { "better" } else { "as well" };
+            format!("{} fits {how} ({v:.4} s, {z:+.1} σ): a late controller and a late {channel} look alike on this run", d.effect)
+        })
     }
 
     /// The refusals of `c` (refitted as `f`) for what its refit does, not how much: one
@@ -520,13 +543,20 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     // A member without support of its own ([`SetFit::unsupported`]) may be averaging a
     // partner's effect (the set's own drift is tested below). Two sensor members of one
     // kind held alike are one cause on both channels, not two sensors
-    // ([`SetFit::alike_partner`]).
+    // ([`SetFit::alike_partner`]). A member delay or lag the physical delay fits as
+    // well as is a coin toss between the two ([`Evidence::physical_alike`]), unless the
+    // set holds the physical delay too.
     let member = |e: &&'static str| ev.cands.iter().find(|c| c.effect == *e);
+    let physical_alike = |c: &Candidate| {
+        !set.effects.contains(&PHYSICAL_DELAY)
+            && ev.after(c.effect).is_some_and(|f| ev.physical_alike(c, f).is_some())
+    };
     if set.effects.iter().filter_map(member).any(|c| {
         ev.absorbs(c, &set.fit.sim)
             || set.unsupported(c)
             || set.alike_partner(c.effect)
             || c.map_alias.is_some()
+            || physical_alike(c)
     }) || set.effects.iter().any(|e| !set.supports(e))
         || set.specs.iter().zip(&set.fit.values).any(|(sp, v)| sp.at_end(*v))
         || set.drift.is_some()
@@ -1175,6 +1205,61 @@ mod tests {
         assert_eq!(judge(0.1, true), (Some(shared.to_string()), true));
         assert_eq!(judge(1.0, true), (None, true));
         assert_eq!(judge(0.1, false), (None, false));
+    }
+
+    /// A motor encoder's delay beside the controller delay, both refitted (tuning
+    /// 505,240): on a large common signal the two differ by bumps the data hold 0.6 of.
+    /// Bumps of 0.1 σ leave them alike: the delay is refused, said with the controller
+    /// delay's value. Bumps of 2 σ with the sensor's fit nearer: it counts; with the
+    /// controller delay's nearer: refused. A controller delay that does not move the
+    /// channel refuses nothing.
+    #[test]
+    fn a_sensor_delay_the_controller_delay_fits_as_well_is_refused() {
+        let (n, dt) = (20_000, 0.001);
+        let channels = [Channel::SuTMotorEnc];
+        let o = Options::default();
+        let s = supply_resistance_only(&o);
+        let delay = "sensor_delay.sutmotorenc";
+        let common = |k: usize| 3.0 * (k as f64 * 0.002).sin();
+        let judge = |size: f64, sensor_nearer: bool, moves: &[&'static str]| {
+            let bump = |k: usize| if k % 2000 < 200 { size * (k as f64 * 0.0157).sin() } else { 0.0 };
+            let noise = gaussian(13, n);
+            let meas = vec![(0..n).map(|k| noise[k] + common(k) + 0.6 * bump(k)).collect()];
+            let p = Prepared::single_run(meas, vec![("SuTMotorEnc", 1.0)], vec![vec![0.0; n]]);
+            let fit = |with_bump: f64| {
+                let sim =
+                    vec![(0..n).map(|k| (common(k) + with_bump * bump(k)) as f32).collect::<Vec<f32>>()];
+                let energy = super::super::preparation::energy(&p, &sim);
+                Fit::fixed(Vec::new(), sim, energy)
+            };
+            let cand = |effect: &'static str, f: &Fit, moves: &[&'static str]| Candidate {
+                confirmed_reduction: Some(((p.e0 - f.energy) / p.excess).clamp(0.0, 1.0)),
+                energy_after: Some(f.energy),
+                significant: true,
+                moves: moves.to_vec(),
+                params: vec![FittedParam {
+                    name: "delay_s",
+                    value: 0.0795,
+                    start: 0.0,
+                    std: 0.01,
+                    std_data: 0.0,
+                    ci95: (0.06, 0.1),
+                    unit: "s",
+                }],
+                ..Candidate::named(effect, 0.9)
+            };
+            let (fs, fc) = if sensor_nearer { (fit(1.0), fit(0.0)) } else { (fit(0.0), fit(1.0)) };
+            let cands = vec![cand(delay, &fs, &["SuTMotorEnc"]), cand(PHYSICAL_DELAY, &fc, moves)];
+            let fits = vec![(0, fs), (1, fc)];
+            let ev = one_candidate(&p, &s, &o, &channels, dt, (&cands, &fits));
+            ev.refusal(&cands[0]).map(|why| why.split(" s, ").next().unwrap_or_default().to_string())
+        };
+        let both = ["SuTMotorEnc", "C_Kistler_L", "I_DC"];
+        let said = |how: &str| Some(format!("controller_delay fits {how} (0.0795"));
+        assert_eq!(judge(0.1, true, &both), said("as well"));
+        assert_eq!(judge(2.0, true, &both), None);
+        assert_eq!(judge(2.0, false, &both), said("better"));
+        assert_eq!(judge(0.1, true, &["C_Kistler_L", "I_DC"]), None);
     }
 
     /// A cause whose error is confined to 2 s of a 60 s run (0.6 σ on one channel) removes
