@@ -1156,36 +1156,71 @@ mod tests {
         }
     }
 
+    /// One SuTMotorEnc channel of 20,000 samples (noise σ = 1, seed `seed`) holding a large
+    /// common signal and 0.6 of bumps of `size` σ over a tenth of the run: two refits
+    /// that differ by the bumps are alike at 0.1 σ and told apart at 1–2 σ.
+    struct Bumped {
+        p: Prepared,
+        size: f64,
+    }
+
+    impl Bumped {
+        const N: usize = 20_000;
+
+        fn new(size: f64, seed: u64) -> Self {
+            let noise = gaussian(seed, Self::N);
+            let meas =
+                vec![(0..Self::N).map(|k| noise[k] + Self::common(k) + 0.6 * Self::bump(size, k)).collect()];
+            Bumped {
+                p: Prepared::single_run(meas, vec![("SuTMotorEnc", 1.0)], vec![vec![0.0; Self::N]]),
+                size,
+            }
+        }
+
+        fn common(k: usize) -> f64 {
+            3.0 * (k as f64 * 0.002).sin()
+        }
+
+        fn bump(size: f64, k: usize) -> f64 {
+            if k % 2000 < 200 {
+                size * (k as f64 * 0.0157).sin()
+            } else {
+                0.0
+            }
+        }
+
+        /// A refit whose output holds `share` of the bumps.
+        fn fit(&self, share: f64) -> Fit {
+            let sim = vec![(0..Self::N)
+                .map(|k| (Self::common(k) + share * Self::bump(self.size, k)) as f32)
+                .collect::<Vec<f32>>()];
+            let energy = super::super::preparation::energy(&self.p, &sim);
+            Fit::fixed(Vec::new(), sim, energy)
+        }
+
+        /// A significant candidate `effect` refitted as `f`.
+        fn candidate(&self, effect: &'static str, f: &Fit) -> Candidate {
+            Candidate {
+                confirmed_reduction: Some(((self.p.e0 - f.energy) / self.p.excess).clamp(0.0, 1.0)),
+                energy_after: Some(f.energy),
+                significant: true,
+                ..Candidate::named(effect, 0.9)
+            }
+        }
+    }
+
     /// A lag whose channel's delay fits alike shares the delay's refusal for its drift
     /// (tuning case 505,194): both refits take a large common signal, and differ by bumps
     /// of 0.1 σ (alike) or 1 σ (told apart, the lag counts on its own). A delay that is
     /// not refused refuses nothing.
     #[test]
     fn a_lag_shares_the_refusal_of_a_delay_that_fits_alike() {
-        let (n, dt) = (20_000, 0.001);
-        let channels = [Channel::SuTMotorEnc];
-        let o = Options::default();
+        let (channels, o) = ([Channel::SuTMotorEnc], Options::default());
         let s = supply_resistance_only(&o);
         let (lag, delay) = ("sensor_lag.sutmotorenc", "sensor_delay.sutmotorenc");
-        let common = |k: usize| 3.0 * (k as f64 * 0.002).sin();
         let judge = |size: f64, drift: bool| {
-            let bump = |k: usize| if k % 2000 < 200 { size * (k as f64 * 0.0157).sin() } else { 0.0 };
-            let noise = gaussian(11, n);
-            let meas = vec![(0..n).map(|k| noise[k] + common(k) + 0.6 * bump(k)).collect()];
-            let p = Prepared::single_run(meas, vec![("SuTMotorEnc", 1.0)], vec![vec![0.0; n]]);
-            let fit = |with_bump: f64| {
-                let sim =
-                    vec![(0..n).map(|k| (common(k) + with_bump * bump(k)) as f32).collect::<Vec<f32>>()];
-                let energy = super::super::preparation::energy(&p, &sim);
-                Fit::fixed(Vec::new(), sim, energy)
-            };
-            let cand = |effect: &'static str, f: &Fit| Candidate {
-                confirmed_reduction: Some(((p.e0 - f.energy) / p.excess).clamp(0.0, 1.0)),
-                energy_after: Some(f.energy),
-                significant: true,
-                ..Candidate::named(effect, 0.9)
-            };
-            let (fl, fd) = (fit(1.0), fit(0.0));
+            let b = Bumped::new(size, 11);
+            let (fl, fd) = (b.fit(1.0), b.fit(0.0));
             let d = Candidate {
                 drift: drift.then_some(super::super::constancy::Drift {
                     param: "sutmotorenc",
@@ -1193,11 +1228,11 @@ mod tests {
                     first: 0.03,
                     last: 0.05,
                 }),
-                ..cand(delay, &fd)
+                ..b.candidate(delay, &fd)
             };
-            let cands = vec![cand(lag, &fl), d];
+            let cands = vec![b.candidate(lag, &fl), d];
             let fits = vec![(0, fl), (1, fd)];
-            let ev = one_candidate(&p, &s, &o, &channels, dt, (&cands, &fits));
+            let ev = one_candidate(&b.p, &s, &o, &channels, 0.001, (&cands, &fits));
             (ev.refusal(&cands[0]), ev.refusal(&cands[1]).is_some())
         };
         let shared =
@@ -1208,50 +1243,36 @@ mod tests {
     }
 
     /// A motor encoder's delay beside the controller delay, both refitted (tuning
-    /// 505,240): on a large common signal the two differ by bumps the data hold 0.6 of.
-    /// Bumps of 0.1 σ leave them alike: the delay is refused, said with the controller
-    /// delay's value. Bumps of 2 σ with the sensor's fit nearer: it counts; with the
-    /// controller delay's nearer: refused. A controller delay that does not move the
-    /// channel refuses nothing.
+    /// 505,240), the two differing by bumps ([`Bumped`]). Bumps of 0.1 σ leave them
+    /// alike: the delay is refused, said with the controller delay's value. Bumps of 2 σ
+    /// with the sensor's fit nearer: it counts; with the controller delay's nearer:
+    /// refused. A controller delay that does not move the channel refuses nothing.
     #[test]
     fn a_sensor_delay_the_controller_delay_fits_as_well_is_refused() {
-        let (n, dt) = (20_000, 0.001);
-        let channels = [Channel::SuTMotorEnc];
-        let o = Options::default();
+        let (channels, o) = ([Channel::SuTMotorEnc], Options::default());
         let s = supply_resistance_only(&o);
-        let delay = "sensor_delay.sutmotorenc";
-        let common = |k: usize| 3.0 * (k as f64 * 0.002).sin();
         let judge = |size: f64, sensor_nearer: bool, moves: &[&'static str]| {
-            let bump = |k: usize| if k % 2000 < 200 { size * (k as f64 * 0.0157).sin() } else { 0.0 };
-            let noise = gaussian(13, n);
-            let meas = vec![(0..n).map(|k| noise[k] + common(k) + 0.6 * bump(k)).collect()];
-            let p = Prepared::single_run(meas, vec![("SuTMotorEnc", 1.0)], vec![vec![0.0; n]]);
-            let fit = |with_bump: f64| {
-                let sim =
-                    vec![(0..n).map(|k| (common(k) + with_bump * bump(k)) as f32).collect::<Vec<f32>>()];
-                let energy = super::super::preparation::energy(&p, &sim);
-                Fit::fixed(Vec::new(), sim, energy)
+            let b = Bumped::new(size, 13);
+            let (fs, fc) = if sensor_nearer { (b.fit(1.0), b.fit(0.0)) } else { (b.fit(0.0), b.fit(1.0)) };
+            let delay_s = FittedParam {
+                name: "delay_s",
+                value: 0.0795,
+                start: 0.0,
+                std: 0.01,
+                std_data: 0.0,
+                ci95: (0.06, 0.1),
+                unit: "s",
             };
-            let cand = |effect: &'static str, f: &Fit, moves: &[&'static str]| Candidate {
-                confirmed_reduction: Some(((p.e0 - f.energy) / p.excess).clamp(0.0, 1.0)),
-                energy_after: Some(f.energy),
-                significant: true,
-                moves: moves.to_vec(),
-                params: vec![FittedParam {
-                    name: "delay_s",
-                    value: 0.0795,
-                    start: 0.0,
-                    std: 0.01,
-                    std_data: 0.0,
-                    ci95: (0.06, 0.1),
-                    unit: "s",
-                }],
-                ..Candidate::named(effect, 0.9)
-            };
-            let (fs, fc) = if sensor_nearer { (fit(1.0), fit(0.0)) } else { (fit(0.0), fit(1.0)) };
-            let cands = vec![cand(delay, &fs, &["SuTMotorEnc"]), cand(PHYSICAL_DELAY, &fc, moves)];
+            let cands = vec![
+                Candidate { moves: vec!["SuTMotorEnc"], ..b.candidate("sensor_delay.sutmotorenc", &fs) },
+                Candidate {
+                    moves: moves.to_vec(),
+                    params: vec![delay_s],
+                    ..b.candidate(PHYSICAL_DELAY, &fc)
+                },
+            ];
             let fits = vec![(0, fs), (1, fc)];
-            let ev = one_candidate(&p, &s, &o, &channels, dt, (&cands, &fits));
+            let ev = one_candidate(&b.p, &s, &o, &channels, 0.001, (&cands, &fits));
             ev.refusal(&cands[0]).map(|why| why.split(" s, ").next().unwrap_or_default().to_string())
         };
         let both = ["SuTMotorEnc", "C_Kistler_L", "I_DC"];
