@@ -110,7 +110,7 @@ impl Evidence<'_> {
     /// what it does ([`Candidate::map_alias`]), it is a one-channel cause that only
     /// absorbs part of what else is wrong on its channel ([`Self::absorbs`]), it is a
     /// lag whose delay fits alike and is refused ([`Self::alike_delay_refused`]), or a
-    /// delay or lag the physical delay fits as well as ([`Self::physical_alike`]).
+    /// delay whose look-alike of the other kind fits as well ([`Self::delay_alike`]).
     fn refusal_but_worse(&self, c: &Candidate) -> Option<String> {
         if let Some(why) = drifts(c) {
             return Some(why);
@@ -127,25 +127,52 @@ impl Evidence<'_> {
         }
         self.refusal_of_shape(c, f)
             .or_else(|| self.alike_delay_refused(c, f))
-            .or_else(|| self.physical_alike(c, f))
+            .or_else(|| self.delay_alike(c, f))
     }
 
-    /// For a channel's delay or lag `c` (refitted as `f`), why [`PHYSICAL_DELAY`] —
-    /// refitted, moving that channel and others — leaves it nothing to name: it fits as
-    /// well or better ([`separation`] under [`ALIKE_Z`] in the sensor's favour). A late
-    /// sensor moves its channel alone; where the channels a physical delay also moves do
-    /// not tell the two apart (beside wrong maps), the run cannot say which it is, and the
-    /// sensor would be claimed for a controller delay (tuning 505,240, 505,354; proof
-    /// 1,007,372). Not for a physical delay already in the set that names `c`.
-    pub(super) fn physical_alike(&self, c: &Candidate, f: &Fit) -> Option<String> {
-        let channel = c.moves.first().filter(|_| is_dynamic_sensor(c.effect))?;
-        let d = self.cands.iter().find(|d| d.effect == PHYSICAL_DELAY && d.moves.contains(channel))?;
-        let g = self.after(d.effect)?;
-        let z = separation(self.p, g, f, self.dt);
-        (z < ALIKE_Z).then(|| {
-            let v = d.params.first().map_or(f64::NAN, |fp| fp.value);
-            let how = if z <= -ALIKE_Z { "better" } else { "as well" };
-            format!("{} fits {how} ({v:.4} s, {z:+.1} σ): a late controller and a late {channel} look alike on this run", d.effect)
+    /// Why delay `c` (refitted as `f`) is not named when its look-alike of the other kind
+    /// fits as well or better ([`Self::delay_lookalike`]): the run cannot say which it is.
+    fn delay_alike(&self, c: &Candidate, f: &Fit) -> Option<String> {
+        let (d, z) = self.delay_lookalike(c, f, &[])?;
+        let v = d.params.first().map_or(f64::NAN, |fp| fp.value);
+        let how = if z <= -ALIKE_Z { "better" } else { "as well" };
+        let sensor = if is_dynamic_sensor(c.effect) { c } else { d };
+        let channel = sensor.moves.first().copied().unwrap_or("its channel");
+        Some(format!(
+            "{} fits {how} ({v:.4} s, {z:+.1} σ): a late controller and a late {channel} look alike on this run",
+            d.effect
+        ))
+    }
+
+    /// For a channel's delay or lag `c` (refitted as `f`), the refitted [`PHYSICAL_DELAY`]
+    /// when it moves that channel too; for the physical delay, a refitted delay or lag of a
+    /// channel it moves — the first, not named in `skip`, that fits as well or better
+    /// ([`separation`] under [`ALIKE_Z`] in `c`'s favour), with that separation. A
+    /// look-alike refused for its shape ([`Self::refusal_of_shape`]: a delay that only
+    /// absorbs part of its channel's error beside a wrong speed map) is no rival. A late
+    /// sensor moves its channel alone; where the channels the physical delay also moves do
+    /// not tell the two apart (beside wrong maps) the run cannot say which it is, and
+    /// either would be claimed for the other: the motor encoder's delay for a controller
+    /// delay (tuning 505,240, 505,354; proof 1,007,372), the controller delay for the
+    /// encoder's 38 ms skew (tuning 505,423).
+    pub(super) fn delay_lookalike(&self, c: &Candidate, f: &Fit, skip: &[&str]) -> Option<(&Candidate, f64)> {
+        let of_sensor = |d: &Candidate| {
+            d.effect == PHYSICAL_DELAY && c.moves.first().is_some_and(|ch| d.moves.contains(ch))
+        };
+        let of_physical = |d: &Candidate| {
+            is_dynamic_sensor(d.effect) && d.moves.first().is_some_and(|ch| c.moves.contains(ch))
+        };
+        let other: &dyn Fn(&Candidate) -> bool = if is_dynamic_sensor(c.effect) {
+            &of_sensor
+        } else if c.effect == PHYSICAL_DELAY {
+            &of_physical
+        } else {
+            return None;
+        };
+        self.cands.iter().filter(|d| other(d) && !skip.contains(&d.effect)).find_map(|d| {
+            let g = self.after(d.effect).filter(|g| self.refusal_of_shape(d, g).is_none())?;
+            let z = separation(self.p, g, f, self.dt);
+            (z < ALIKE_Z).then_some((d, z))
         })
     }
 
@@ -543,20 +570,18 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
     // A member without support of its own ([`SetFit::unsupported`]) may be averaging a
     // partner's effect (the set's own drift is tested below). Two sensor members of one
     // kind held alike are one cause on both channels, not two sensors
-    // ([`SetFit::alike_partner`]). A member delay or lag the physical delay fits as
-    // well as is a coin toss between the two ([`Evidence::physical_alike`]), unless the
-    // set holds the physical delay too.
+    // ([`SetFit::alike_partner`]). A member delay whose look-alike of the other kind
+    // (a sensor's, the controller's) fits as well is a coin toss between the two
+    // ([`Evidence::delay_lookalike`]), unless the set holds that look-alike too.
     let member = |e: &&'static str| ev.cands.iter().find(|c| c.effect == *e);
-    let physical_alike = |c: &Candidate| {
-        !set.effects.contains(&PHYSICAL_DELAY)
-            && ev.after(c.effect).is_some_and(|f| ev.physical_alike(c, f).is_some())
-    };
+    let delay_alike =
+        |c: &Candidate| ev.after(c.effect).is_some_and(|f| ev.delay_lookalike(c, f, &set.effects).is_some());
     if set.effects.iter().filter_map(member).any(|c| {
         ev.absorbs(c, &set.fit.sim)
             || set.unsupported(c)
             || set.alike_partner(c.effect)
             || c.map_alias.is_some()
-            || physical_alike(c)
+            || delay_alike(c)
     }) || set.effects.iter().any(|e| !set.supports(e))
         || set.specs.iter().zip(&set.fit.values).any(|(sp, v)| sp.at_end(*v))
         || set.drift.is_some()
@@ -1168,13 +1193,21 @@ mod tests {
         const N: usize = 20_000;
 
         fn new(size: f64, seed: u64) -> Self {
+            Self::build(size, seed, 0.0, vec![0.0; Self::N])
+        }
+
+        /// The model already holding the common signal, and `offset` σ more in the data
+        /// that no refit takes: a refit of one channel leaves it above the noise.
+        fn beside_offset(size: f64, seed: u64, offset: f64) -> Self {
+            Self::build(size, seed, offset, (0..Self::N).map(|k| Self::common(k) as f32).collect())
+        }
+
+        fn build(size: f64, seed: u64, offset: f64, base: Vec<f32>) -> Self {
             let noise = gaussian(seed, Self::N);
-            let meas =
-                vec![(0..Self::N).map(|k| noise[k] + Self::common(k) + 0.6 * Self::bump(size, k)).collect()];
-            Bumped {
-                p: Prepared::single_run(meas, vec![("SuTMotorEnc", 1.0)], vec![vec![0.0; Self::N]]),
-                size,
-            }
+            let meas = vec![(0..Self::N)
+                .map(|k| noise[k] + offset + Self::common(k) + 0.6 * Self::bump(size, k))
+                .collect()];
+            Bumped { p: Prepared::single_run(meas, vec![("SuTMotorEnc", 1.0)], vec![base]), size }
         }
 
         fn common(k: usize) -> f64 {
@@ -1243,44 +1276,59 @@ mod tests {
     }
 
     /// A motor encoder's delay beside the controller delay, both refitted (tuning
-    /// 505,240), the two differing by bumps ([`Bumped`]). Bumps of 0.1 σ leave them
-    /// alike: the delay is refused, said with the controller delay's value. Bumps of 2 σ
-    /// with the sensor's fit nearer: it counts; with the controller delay's nearer:
-    /// refused. A controller delay that does not move the channel refuses nothing.
+    /// 505,240 and 505,423), the two differing by bumps ([`Bumped`]). Bumps of 0.1 σ leave
+    /// them alike: each is refused, said with the other's value. Bumps of 2 σ: the one
+    /// nearer the data counts, the other is refused ("fits better"). A controller delay
+    /// that does not move the channel refuses nothing and is refused by nothing; a sensor
+    /// delay refused for its shape (fitting exactly as the controller delay does, with 1 σ
+    /// of offset no refit takes: it only absorbs part of its channel's error) is no rival.
     #[test]
-    fn a_sensor_delay_the_controller_delay_fits_as_well_is_refused() {
+    fn a_late_sensor_and_a_late_controller_that_fit_alike_are_neither_named() {
         let (channels, o) = ([Channel::SuTMotorEnc], Options::default());
         let s = supply_resistance_only(&o);
-        let judge = |size: f64, sensor_nearer: bool, moves: &[&'static str]| {
-            let b = Bumped::new(size, 13);
-            let (fs, fc) = if sensor_nearer { (b.fit(1.0), b.fit(0.0)) } else { (b.fit(0.0), b.fit(1.0)) };
-            let delay_s = FittedParam {
-                name: "delay_s",
-                value: 0.0795,
+        // The sensor's and the controller delay's refits holding these shares of the bumps.
+        let judge_fits = |b: Bumped, (s_share, c_share): (f64, f64), moves: &[&'static str]| {
+            let (fs, fc) = (b.fit(s_share), b.fit(c_share));
+            let value = |name, value| FittedParam {
+                name,
+                value,
                 start: 0.0,
                 std: 0.01,
                 std_data: 0.0,
-                ci95: (0.06, 0.1),
+                ci95: (value - 0.02, value + 0.02),
                 unit: "s",
             };
             let cands = vec![
-                Candidate { moves: vec!["SuTMotorEnc"], ..b.candidate("sensor_delay.sutmotorenc", &fs) },
+                Candidate {
+                    moves: vec!["SuTMotorEnc"],
+                    params: vec![value("sutmotorenc", 0.0723)],
+                    ..b.candidate("sensor_delay.sutmotorenc", &fs)
+                },
                 Candidate {
                     moves: moves.to_vec(),
-                    params: vec![delay_s],
+                    params: vec![value("delay_s", 0.0795)],
                     ..b.candidate(PHYSICAL_DELAY, &fc)
                 },
             ];
             let fits = vec![(0, fs), (1, fc)];
             let ev = one_candidate(&b.p, &s, &o, &channels, 0.001, (&cands, &fits));
-            ev.refusal(&cands[0]).map(|why| why.split(" s, ").next().unwrap_or_default().to_string())
+            let said = |c| ev.refusal(c).map(|why| why.split(" s, ").next().unwrap_or_default().to_string());
+            (said(&cands[0]), said(&cands[1]))
         };
         let both = ["SuTMotorEnc", "C_Kistler_L", "I_DC"];
-        let said = |how: &str| Some(format!("controller_delay fits {how} (0.0795"));
-        assert_eq!(judge(0.1, true, &both), said("as well"));
-        assert_eq!(judge(2.0, true, &both), None);
-        assert_eq!(judge(2.0, false, &both), said("better"));
-        assert_eq!(judge(0.1, true, &["C_Kistler_L", "I_DC"]), None);
+        let controller = |how: &str| Some(format!("controller_delay fits {how} (0.0795"));
+        let sensor = |how: &str| Some(format!("sensor_delay.sutmotorenc fits {how} (0.0723"));
+        let judge = |size: f64, sensor_nearer: bool, moves: &[&'static str]| {
+            let shares = if sensor_nearer { (1.0, 0.0) } else { (0.0, 1.0) };
+            judge_fits(Bumped::new(size, 13), shares, moves)
+        };
+        assert_eq!(judge(0.1, true, &both), (controller("as well"), sensor("as well")));
+        assert_eq!(judge(2.0, true, &both), (None, sensor("better")));
+        assert_eq!(judge(2.0, false, &both), (controller("better"), None));
+        assert_eq!(judge(0.1, true, &["C_Kistler_L", "I_DC"]), (None, None));
+        let absorbing = "it leaves SuTMotorEnc above the noise, only absorbing part of what is wrong there";
+        let same = judge_fits(Bumped::beside_offset(2.0, 13, 1.0), (1.0, 1.0), &both);
+        assert_eq!(same, (Some(absorbing.to_string()), None));
     }
 
     /// A cause whose error is confined to 2 s of a 60 s run (0.6 σ on one channel) removes
