@@ -75,6 +75,17 @@ pub(super) struct Verdict {
     pub removed: f64,
 }
 
+/// Whether `a` and `b` are a channel's delay or lag and [`PHYSICAL_DELAY`] moving that
+/// channel, either way round.
+fn delay_pair(a: &Candidate, b: &Candidate) -> bool {
+    let pair = |sensor: &Candidate, physical: &Candidate| {
+        is_dynamic_sensor(sensor.effect)
+            && physical.effect == PHYSICAL_DELAY
+            && sensor.moves.first().is_some_and(|ch| physical.moves.contains(ch))
+    };
+    pair(a, b) || pair(b, a)
+}
+
 /// Why `c` is refused when its value drifts over the run, with speed or with the load
 /// ([`Candidate::drift`]).
 fn drifts(c: &Candidate) -> Option<String> {
@@ -156,20 +167,7 @@ impl Evidence<'_> {
     /// delay (tuning 505,240, 505,354; proof 1,007,372), the controller delay for the
     /// encoder's 38 ms skew (tuning 505,423).
     pub(super) fn delay_lookalike(&self, c: &Candidate, f: &Fit, skip: &[&str]) -> Option<(&Candidate, f64)> {
-        let of_sensor = |d: &Candidate| {
-            d.effect == PHYSICAL_DELAY && c.moves.first().is_some_and(|ch| d.moves.contains(ch))
-        };
-        let of_physical = |d: &Candidate| {
-            is_dynamic_sensor(d.effect) && d.moves.first().is_some_and(|ch| c.moves.contains(ch))
-        };
-        let other: &dyn Fn(&Candidate) -> bool = if is_dynamic_sensor(c.effect) {
-            &of_sensor
-        } else if c.effect == PHYSICAL_DELAY {
-            &of_physical
-        } else {
-            return None;
-        };
-        self.cands.iter().filter(|d| other(d) && !skip.contains(&d.effect)).find_map(|d| {
+        self.cands.iter().filter(|d| delay_pair(c, d) && !skip.contains(&d.effect)).find_map(|d| {
             let g = self.after(d.effect).filter(|g| self.refusal_of_shape(d, g).is_none())?;
             let z = separation(self.p, g, f, self.dt);
             (z < ALIKE_Z).then_some((d, z))
