@@ -15,9 +15,12 @@
 //! needs a filtering stage in the sensor's path. A verdict led by the delay still names
 //! the lag it is confounded with (the confounded group) and a run that would separate them.
 
+use model_core::Channel;
+
 use super::engine::{Candidate, Options, Twin};
 use super::preparation::Prepared;
 use super::refit::{refit_alone, Fit};
+use super::selection::main_channel;
 use super::sensitivities::Sensitivities;
 use super::uncertainty::separation;
 use super::verdict::rank;
@@ -103,18 +106,37 @@ pub(super) fn choose_dynamics(
 /// outside the set (a single lead) was otherwise named without its sibling refitted (an
 /// 82 ms skew of I_XLMR 2.3 named a 78 ms lag, the delay left at its linear guess).
 /// Beside a delay or lag, [`PHYSICAL_DELAY`] too, which the linearisation at zero sees a
-/// fraction of: the verdict asks whether it fits as well (tuning 505,157: a 140 ms
-/// controller delay never refitted, the motor encoder's lag named for it).
-pub(super) fn with_siblings(s: &Sensitivities, list: &mut Vec<usize>) {
+/// fraction of, and beside the physical delay the delay and lag of the channel it moves
+/// most (`channels` names the sensitivities' channels): the verdict asks whether the two
+/// kinds fit alike (tuning 505,157: a 140 ms controller delay never refitted, the motor
+/// encoder's lag named for it; 505,500: a controller delay named, the encoder's delay and
+/// lag never refitted).
+pub(super) fn with_siblings(s: &Sensitivities, channels: &[Channel], list: &mut Vec<usize>) {
     let physical = s.groups.iter().position(|(g, _)| *g == PHYSICAL_DELAY);
     for k in 0..list.len() {
-        if let Some(sib) = sibling_group(s, list[k]).filter(|g| !list.contains(g)) {
-            list.push(sib);
+        let mut more: Vec<usize> = sibling_group(s, list[k]).into_iter().collect();
+        if is_dynamic_sensor(s.groups[list[k]].0) {
+            more.extend(physical);
+        } else if Some(list[k]) == physical {
+            more.extend(lookalikes_of_physical(s, channels, list[k]));
         }
-        if let Some(ph) = physical.filter(|g| is_dynamic_sensor(s.groups[list[k]].0) && !list.contains(g)) {
-            list.push(ph);
+        for g in more {
+            if !list.contains(&g) {
+                list.push(g);
+            }
         }
     }
+}
+
+/// The delay and lag groups of the channel physical delay group `g` moves most.
+fn lookalikes_of_physical(s: &Sensitivities, channels: &[Channel], g: usize) -> Vec<usize> {
+    let Some(key) = main_channel(s, &s.groups[g].1).and_then(|c| channels.get(c)).map(|ch| ch.key()) else {
+        return Vec::new();
+    };
+    [DELAY, LAG]
+        .iter()
+        .filter_map(|kind| s.groups.iter().position(|(name, _)| name.strip_prefix(kind) == Some(key)))
+        .collect()
 }
 
 /// The candidates in ranking order ([`rank`]), with a delay moved just ahead of its own
@@ -205,7 +227,8 @@ mod tests {
     }
 
     /// A lag among the leaders brings its delay along (and only once), and the physical
-    /// delay; a physical leader brings nothing.
+    /// delay; the physical delay brings the delay and lag of the channel it moves most
+    /// (I_DC, twice SuTMotorEnc's share), or nothing when that channel has neither.
     #[test]
     fn a_dynamic_leader_is_refitted_beside_its_sibling() {
         let names = ["controller_delay", "sensor_lag.i_dc", "sensor_delay.i_dc"];
@@ -216,20 +239,35 @@ mod tests {
                 lib.into_iter().find(|sp| sp.cause == *n).expect("in the library")
             })
             .collect();
+        // J'WJ per channel (3 x 3): the controller delay's diagonal entry on each.
+        let diag = |cd: f64| {
+            (0..9)
+                .map(|k| {
+                    if k == 0 {
+                        cd
+                    } else if k % 4 == 0 {
+                        1.0
+                    } else {
+                        0.0
+                    }
+                })
+                .collect()
+        };
         let s = Sensitivities {
             starts: specs.iter().map(|sp| sp.neutral).collect(),
             groups: names.iter().enumerate().map(|(i, n)| (*n, vec![i])).collect(),
             specs,
+            gc: vec![diag(1.0), diag(2.0)],
             ..Sensitivities::default()
         };
-        let mut list = vec![0, 1];
-        with_siblings(&s, &mut list);
-        assert_eq!(list, [0, 1, 2]);
-        let mut list = vec![2, 1];
-        with_siblings(&s, &mut list);
-        assert_eq!(list, [2, 1, 0]);
-        let mut list = vec![0];
-        with_siblings(&s, &mut list);
-        assert_eq!(list, [0]);
+        let channels = [Channel::SuTMotorEnc, Channel::IDc];
+        let siblings = |mut list: Vec<usize>, channels: &[Channel]| {
+            with_siblings(&s, channels, &mut list);
+            list
+        };
+        assert_eq!(siblings(vec![0, 1], &channels), [0, 1, 2]);
+        assert_eq!(siblings(vec![2, 1], &channels), [2, 1, 0]);
+        assert_eq!(siblings(vec![0], &channels), [0, 2, 1]);
+        assert_eq!(siblings(vec![0], &[Channel::IDc, Channel::SuTMotorEnc]), [0]);
     }
 }

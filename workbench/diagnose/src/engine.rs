@@ -543,7 +543,7 @@ fn stages(
     let ready = choose_dynamics(twin, &p, &s, o, &cands, &mut selected);
     let mut leaders = refit_list(&cands, &selected, o);
     let held = Held::refit(twin, &p, &s, o);
-    with_siblings(&s, &mut leaders);
+    with_siblings(&s, twin.channels(), &mut leaders);
     let (mut fits, set) = rayon::join(
         || confirm_leaders(twin, (&p, &s, o, &held), &leaders, ready, &mut cands),
         || joint_fit(twin, &p, &s, o, &selected),
@@ -574,7 +574,7 @@ fn stages(
         }
     };
     if !next.is_empty() {
-        with_siblings(&s, &mut next);
+        with_siblings(&s, twin.channels(), &mut next);
         let more = confirm_leaders(twin, (&p, &s, o, &held), &next, Vec::new(), &mut cands);
         mark(&more, &mut cands);
         fits.extend(more);

@@ -99,14 +99,24 @@ fn moved_channels(s: &Sensitivities, channels: &[Channel], ix: &[usize]) -> Vec<
 
 /// Indices of the channels [`moved_channels`] names.
 fn moved(s: &Sensitivities, ix: &[usize]) -> Vec<usize> {
-    let np = s.np();
-    let per: Vec<f64> =
-        s.gc.iter().map(|g| ix.iter().map(|&i| g.get(i * np + i).copied().unwrap_or(0.0)).sum()).collect();
+    let per = per_channel(s, ix);
     let total: f64 = per.iter().sum();
     if total.is_nan() || total <= 0.0 {
         return Vec::new();
     }
     (0..per.len()).filter(|&c| per[c] >= MOVES_SHARE * total).collect()
+}
+
+/// The channel that carries the largest share of the parameters' weighted sensitivity.
+pub(super) fn main_channel(s: &Sensitivities, ix: &[usize]) -> Option<usize> {
+    let per = per_channel(s, ix);
+    (0..per.len()).filter(|&c| per[c] > 0.0).max_by(|&a, &b| per[a].total_cmp(&per[b]))
+}
+
+/// The parameters' weighted sensitivity (`J'WJ`'s diagonal) per channel.
+fn per_channel(s: &Sensitivities, ix: &[usize]) -> Vec<f64> {
+    let np = s.np();
+    s.gc.iter().map(|g| ix.iter().map(|&i| g.get(i * np + i).copied().unwrap_or(0.0)).sum()).collect()
 }
 
 /// The linear fit's values, not yet with an uncertainty (that needs the refit): σ and
