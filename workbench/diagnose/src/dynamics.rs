@@ -240,16 +240,12 @@ mod tests {
             })
             .collect();
         // J'WJ per channel (3 x 3): the controller delay's diagonal entry on each.
-        let diag = |cd: f64| {
+        let diag = |cd: f64| -> Vec<f64> {
             (0..9)
-                .map(|k| {
-                    if k == 0 {
-                        cd
-                    } else if k % 4 == 0 {
-                        1.0
-                    } else {
-                        0.0
-                    }
+                .map(|k| match k {
+                    0 => cd,
+                    4 | 8 => 1.0,
+                    _ => 0.0,
                 })
                 .collect()
         };

@@ -166,7 +166,7 @@ impl Evidence<'_> {
     /// either would be claimed for the other: the motor encoder's delay for a controller
     /// delay (tuning 505,240, 505,354; proof 1,007,372), the controller delay for the
     /// encoder's 38 ms skew (tuning 505,423).
-    pub(super) fn delay_lookalike(&self, c: &Candidate, f: &Fit, skip: &[&str]) -> Option<(&Candidate, f64)> {
+    fn delay_lookalike(&self, c: &Candidate, f: &Fit, skip: &[&str]) -> Option<(&Candidate, f64)> {
         self.cands.iter().filter(|d| delay_pair(c, d) && !skip.contains(&d.effect)).find_map(|d| {
             let g = self.after(d.effect).filter(|g| self.refusal_of_shape(d, g).is_none())?;
             let z = separation(self.p, g, f, self.dt);
