@@ -34,6 +34,7 @@ use simrod_io::datadir::{ModelData, ParamLine};
 
 use super::engine::{ChannelChange, Options, Twin};
 use super::linalg::solve_spd;
+use super::normal::{normal, Normal, Products, Samples};
 use super::preparation::{rmse, run_each, worse_by_run, worse_somewhere, Prepared, RunResult, WORSE};
 
 /// Most fit samples the map regressions read (every k-th of [`Prepared::idx`]).
@@ -429,70 +430,6 @@ fn corrected(base: &ModelData, maps: &[&MapNodes], delta: &[f64]) -> ModelData {
     d
 }
 
-/// The linearised model over a set of columns: per fold and whole, `J'WJ` and `J'W r`.
-struct Normal {
-    n: usize,
-    g: Vec<f64>,
-    b: Vec<f64>,
-    gf: Vec<Vec<f64>>,
-    bf: Vec<Vec<f64>>,
-}
-
-/// Responses `[column][channel][sample]` (sample: position in `rows`) against the
-/// residual `r[channel][sample]`, weights `w[channel][sample]`, folds per sample.
-/// The folds are summed side by side (each in the samples' order, so the same bits as
-/// one pass): with a hundred columns this is the table fit's largest serial sum.
-fn normal(cols: &[&Vec<Vec<f64>>], r: &[Vec<f64>], w: &[Vec<f64>], folds: &[usize], nf: usize) -> Normal {
-    use rayon::prelude::*;
-    let n = cols.len();
-    let (gf, bf): (Vec<Vec<f64>>, Vec<Vec<f64>>) =
-        (0..nf).into_par_iter().map(|f| fold_normal(cols, (r, w), folds, f)).unzip();
-    let mut g = vec![0.0; n * n];
-    let mut b = vec![0.0; n];
-    for (gk, bk) in gf.iter().zip(&bf) {
-        g.iter_mut().zip(gk).for_each(|(x, y)| *x += y);
-        b.iter_mut().zip(bk).for_each(|(x, y)| *x += y);
-    }
-    Normal { n, g, b, gf, bf }
-}
-
-/// `J'WJ` (full, row-major) and `J'Wr` of [`normal`]'s columns over the samples of
-/// fold `f`.
-fn fold_normal(
-    cols: &[&Vec<Vec<f64>>],
-    (r, w): (&[Vec<f64>], &[Vec<f64>]),
-    folds: &[usize],
-    f: usize,
-) -> (Vec<f64>, Vec<f64>) {
-    let n = cols.len();
-    let (mut g, mut b) = (vec![0.0; n * n], vec![0.0; n]);
-    let mut a = vec![0.0; n];
-    for (c, (rc, wc)) in r.iter().zip(w).enumerate() {
-        for (t, ((rt, _), wc)) in rc.iter().zip(folds).zip(wc).enumerate().filter(|(_, ((_, k), _))| **k == f)
-        {
-            for (aj, col) in a.iter_mut().zip(cols) {
-                *aj = col[c][t];
-            }
-            for i in 0..n {
-                if a[i] == 0.0 {
-                    continue;
-                }
-                let wa = wc * a[i];
-                b[i] += wa * rt;
-                for j in i..n {
-                    g[i * n + j] += wa * a[j];
-                }
-            }
-        }
-    }
-    for i in 0..n {
-        for j in 0..i {
-            g[i * n + j] = g[j * n + i];
-        }
-    }
-    (g, b)
-}
-
 /// The roughness matrix of `maps`' columns (in steps): second differences, and
 /// [`FIRST_DIFF`] times first differences, between neighbouring visited nodes.
 fn roughness(maps: &[&MapNodes], d: &ModelData) -> Vec<f64> {
@@ -707,7 +644,12 @@ impl Basis {
 
     /// The normal equations of `cols` against the residual, per fold.
     fn normal(&self, cols: &[&Vec<Vec<f64>>]) -> Normal {
-        normal(cols, &self.r, &self.w, &self.folds, FOLDS)
+        normal(cols, self.samples(), FOLDS)
+    }
+
+    /// The residual, weights and folds the normal equations sum over.
+    fn samples(&self) -> Samples<'_> {
+        Samples { r: &self.r, w: &self.w, folds: &self.folds }
     }
 }
 
@@ -867,7 +809,8 @@ fn screen(inp: &Inputs, base: &ModelData, maps: &[MapNodes], b: &Basis) -> (Vec<
         // One node has no tilt (its "tilt" is the shift reversed).
         let shapes = if maps[m].nodes.len() == 1 { 1 } else { 2 };
         let refs: Vec<&Vec<Vec<f64>>> = cols.iter().take(shapes).collect();
-        if let Some(gain) = harmed.as_ref().and_then(|w| removable(&normal(&refs, &b.r, w, &b.folds, FOLDS)))
+        if let Some(gain) =
+            harmed.as_ref().and_then(|w| removable(&normal(&refs, Samples { w, ..b.samples() }, FOLDS)))
         {
             if gain > 0.0 && repair.is_none_or(|(_, g)| gain > g) {
                 repair = Some((m, gain));
@@ -951,10 +894,11 @@ fn select(
 ) -> Option<Empirical> {
     use rayon::prelude::*;
     let excess = b.excess;
+    let products = Products::new(cols, b.samples(), FOLDS);
     let guarded_fit = |set: &[usize], keep: &[usize]| {
         let refs: Vec<&Vec<Vec<f64>>> = set.iter().flat_map(|&s| cols[s].iter()).collect();
         let mn: Vec<&MapNodes> = set.iter().map(|&s| maps[s]).collect();
-        let nm = b.normal(&refs);
+        let nm = products.normal(set);
         let pm = roughness(&mn, base);
         let guard = guarded(&refs, &b.w, keep);
         let limit: Vec<f64> = mn.iter().flat_map(|m| m.nodes.iter().map(|_| m.limit)).collect();
@@ -962,12 +906,11 @@ fn select(
         TableFit { heldout, lambda, theta, nm, roughness: pm, guard }
     };
     let fit_of = |set: &[usize]| guarded_fit(set, &[]);
-    let empty = Normal { n: 0, g: Vec::new(), b: Vec::new(), gf: Vec::new(), bf: Vec::new() };
     let none = TableFit {
         heldout: 0.0,
         lambda: 0.0,
         theta: Vec::new(),
-        nm: empty,
+        nm: Normal::empty(),
         roughness: Vec::new(),
         guard: Vec::new(),
     };
@@ -1539,7 +1482,7 @@ mod tests {
         let r: Vec<f64> = (0..len).map(|t| (t % n) as f64 + if t % 2 == 0 { 0.3 } else { -0.3 }).collect();
         let folds: Vec<usize> = (0..len).map(|t| t * 2 / len).collect();
         let refs: Vec<&Vec<Vec<f64>>> = cols.iter().collect();
-        let nm = normal(&refs, &[r], &[vec![1.0; len]], &folds, 2);
+        let nm = normal(&refs, Samples { r: &[r], w: &[vec![1.0; len]], folds: &folds }, 2);
         let p = vec![1.0, -2.0, 1.0, -2.0, 4.0, -2.0, 1.0, -2.0, 1.0];
         let (held, _, th) = best_lambda(&nm, (&p, &[]), &[10.0; 3]);
         assert!(held > 0.0, "{held}");
@@ -1565,7 +1508,7 @@ mod tests {
         let w = vec![vec![1.0; len]; 2];
         let folds: Vec<usize> = (0..len).map(|t| t % 4).collect();
         let refs: Vec<&Vec<Vec<f64>>> = cols.iter().collect();
-        let nm = normal(&refs, &r, &w, &folds, 4);
+        let nm = normal(&refs, Samples { r: &r, w: &w, folds: &folds }, 4);
         let rough = vec![0.0; 4];
         let moved = |th: &[f64]| -> f64 {
             (0..len).map(|t| (cols[0][1][t] * th[0] + cols[1][1][t] * th[1]).powi(2)).sum::<f64>().sqrt()

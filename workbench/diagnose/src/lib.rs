@@ -15,6 +15,7 @@ mod confounding;
 mod constancy;
 mod dynamics;
 mod locate;
+mod normal;
 mod preparation;
 mod refit;
 mod scan;
