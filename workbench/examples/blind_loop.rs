@@ -121,7 +121,8 @@ struct Outcome {
     empirical: bool,
     last: String,
     seconds: f64,
-    /// Why a case is not honest: moved channels above their floor, channels made worse.
+    /// Why a case is not honest, or what a false claim left: moved channels above their
+    /// floor, channels made worse.
     why: Vec<String>,
     /// Hidden library effects not found, and stated intervals that miss the truth.
     missed: Vec<String>,
@@ -753,6 +754,7 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         }
         library.push(Library { found, against_maps: beside, why: unfound.map(|u| u.why) });
     }
+    let why = if honest && false_claim.is_empty() { Vec::new() } else { why };
     Ok(Outcome {
         class: class_of(c),
         maps: c.scenario.perturb_maps.is_some(),
@@ -769,7 +771,7 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         empirical: added.data.is_some(),
         last: last_j["verdict"].as_str().unwrap_or("").chars().take(160).collect(),
         seconds: t0.elapsed().as_secs_f64(),
-        why: if honest { Vec::new() } else { why },
+        why,
         missed,
     })
 }
@@ -908,7 +910,8 @@ fn one_case(
                 o.last
             );
             if !o.why.is_empty() {
-                text.push_str(&format!("{:>9}   not honest: {}\n", "", o.why.join(", ")));
+                let what = if o.honest { "left by the false claim" } else { "not honest" };
+                text.push_str(&format!("{:>9}   {what}: {}\n", "", o.why.join(", ")));
             }
             if !o.missed.is_empty() {
                 text.push_str(&format!("{:>9}   library: {}\n", "", o.missed.join(", ")));
