@@ -37,7 +37,9 @@
 //!   printed too, and how many false effects were first claimed on top of an empirical
 //!   table (in a round whose model already ran on a corrected data directory);
 //! - **found**: a hidden library effect that moves a channel of the scenario's run (the
-//!   truth file's `moves`, [`excited_ids`]) is in the final file; the 95 % interval
+//!   truth file's `moves`, [`excited_ids`]) is in the final file (a measurement-chain
+//!   effect on its own channel, [`claim_key`]: a gain on another channel is not it, and
+//!   is a claim the truth does not justify); the 95 % interval
 //!   stated beside the value that file holds (the last round naming it) holds the truth
 //!   (coverage, [`stated_interval`]). Found and coverage are also printed apart for the
 //!   cases with the maps as identified and those with the maps perturbed: beside a wrong
@@ -634,23 +636,51 @@ fn excited_ids(truth: &toml::Value) -> BTreeSet<String> {
         .unwrap_or_default()
 }
 
-/// Effect ids in an effect file.
-fn ids_in(dir: &Path, file: Option<&str>) -> BTreeSet<String> {
-    let text = file.and_then(|f| std::fs::read_to_string(dir.join(f)).ok()).unwrap_or_default();
-    text.lines()
-        .filter_map(|l| l.trim().strip_prefix('[').and_then(|l| l.strip_suffix(']')))
-        .map(str::to_owned)
-        .collect()
+/// The claim an effect's parameter makes: the effect id, or for the measurement chain
+/// (one cause per channel) `effect.channel` — a C_Kistler_L gain is not a C_Kistler_R
+/// gain, neither found for it nor justified by it.
+fn claim_key(effect: &str, param: &str) -> String {
+    workbench::diagnose::library::cause_of(effect, param).unwrap_or(effect).to_owned()
 }
 
-/// The twin effect ids the truth justifies: its library effects, and the chain effect
-/// that models each acquisition fault.
+/// The claims of an effect file ([`claim_key`]): each effect it holds, and for the chain
+/// each channel whose value is off its neutral one (the file lists every channel).
+fn ids_in(dir: &Path, file: Option<&str>) -> BTreeSet<String> {
+    let text = file.and_then(|f| std::fs::read_to_string(dir.join(f)).ok()).unwrap_or_default();
+    let Ok(toml::Value::Table(t)) = text.parse::<toml::Value>() else { return BTreeSet::new() };
+    let specs = workbench::diagnose::library::library(&model_core::Params::default());
+    let mut out = BTreeSet::new();
+    for (effect, params) in &t {
+        let chain: Vec<String> = params
+            .as_table()
+            .into_iter()
+            .flatten()
+            .filter_map(|(param, v)| {
+                let v = v.as_float().or_else(|| v.as_integer().map(|i| i as f64))?;
+                let sp = specs.iter().find(|sp| sp.effect == effect && sp.param == param && sp.is_chain())?;
+                sp.off_neutral(v).then(|| sp.cause.to_owned())
+            })
+            .collect();
+        let is_chain = specs.iter().any(|sp| sp.effect == effect && sp.is_chain());
+        if is_chain {
+            out.extend(chain);
+        } else {
+            out.insert(effect.clone());
+        }
+    }
+    out
+}
+
+/// The claims the truth justifies ([`claim_key`]): its library effects, and the chain
+/// effect that models each acquisition fault, on its channel.
 fn truth_ids(s: &Scenario) -> BTreeSet<String> {
     s.picks
         .iter()
         .filter_map(|p| match p {
-            Pick::Library { id, .. } => Some(id.to_string()),
-            Pick::Daq { id, .. } => DAQ_TWIN.iter().find(|(d, _)| d == id).map(|(_, t)| t.to_string()),
+            Pick::Library { id, param, .. } => Some(claim_key(id, param)),
+            Pick::Daq { id, channel, .. } => {
+                DAQ_TWIN.iter().find(|(d, _)| d == id).map(|(_, t)| claim_key(t, channel.key()))
+            }
             Pick::Plant { .. } => None,
         })
         .collect()
@@ -735,7 +765,7 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         if !excited.contains(*id) {
             continue;
         }
-        let found = claimed.contains(*id);
+        let found = claimed.contains(&claim_key(id, param));
         let beside = match &maps_error {
             Some(m) => Some(m.ratio(dir, &c.scenario, i, &moves_of(&truth_toml, id))?),
             None => None,
