@@ -120,8 +120,10 @@ impl Evidence<'_> {
     /// less than `min_reduction_of_noise` of the noise energy, one shape of a map does
     /// what it does ([`Candidate::map_alias`]), it is a one-channel cause that only
     /// absorbs part of what else is wrong on its channel ([`Self::absorbs`]), it is a
-    /// lag whose delay fits alike and is refused ([`Self::alike_delay_refused`]), or a
-    /// delay whose look-alike of the other kind fits as well ([`Self::delay_alike`]).
+    /// lag whose delay fits alike and is refused ([`Self::alike_delay_refused`]), a delay
+    /// whose look-alike of the other kind fits as well ([`Self::delay_alike`]), or a new
+    /// gain or offset first asked for on top of an empirical table
+    /// ([`Self::gauge_on_table`]).
     fn refusal_but_worse(&self, c: &Candidate) -> Option<String> {
         if let Some(why) = drifts(c) {
             return Some(why);
@@ -147,7 +149,7 @@ impl Evidence<'_> {
     /// (the run's data corrected by an earlier round): beside a corrected map it fits what
     /// the table was fitted around more often than a sensor. On proofs 23 and 24 all five
     /// such effects were false — a V_DC gain and offset that are the held connector
-    /// resistance made 1.5 % larger on V_DC alone, beside a table on the SuT power map
+    /// resistance made 0.7–1.5 % larger on V_DC alone, beside a table on the SuT power map
     /// fitted with the old value (1,007,715, 1,007,416), an I_DC gain (1,007,654) — against
     /// one true gain found so (1,007,387) and 21 true gains and offsets first named
     /// without a table, none false.
