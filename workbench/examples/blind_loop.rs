@@ -66,6 +66,8 @@ use std::process::Command;
 use std::time::Instant;
 
 use serde_json::Value;
+use workbench::diagnose::library::{cause_of, current_value, library};
+use workbench::effects_file::load_effects;
 use workbench::measure::{load, Measurement};
 use workbench::stats::{rms, Rng};
 use workbench::vbench::bench_effects::format_bench_effects;
@@ -640,35 +642,19 @@ fn excited_ids(truth: &toml::Value) -> BTreeSet<String> {
 /// (one cause per channel) `effect.channel` — a C_Kistler_L gain is not a C_Kistler_R
 /// gain, neither found for it nor justified by it.
 fn claim_key(effect: &str, param: &str) -> String {
-    workbench::diagnose::library::cause_of(effect, param).unwrap_or(effect).to_owned()
+    cause_of(effect, param).unwrap_or(effect).to_owned()
 }
 
-/// The claims of an effect file ([`claim_key`]): each effect it holds, and for the chain
-/// each channel whose value is off its neutral one (the file lists every channel).
+/// The claims of an effect file ([`claim_key`]): every library parameter it holds off its
+/// neutral value, as the cause it belongs to (read by the project's effect-file reader;
+/// the file lists every channel of a chain effect, most at their neutral values).
 fn ids_in(dir: &Path, file: Option<&str>) -> BTreeSet<String> {
-    let text = file.and_then(|f| std::fs::read_to_string(dir.join(f)).ok()).unwrap_or_default();
-    let Ok(toml::Value::Table(t)) = text.parse::<toml::Value>() else { return BTreeSet::new() };
-    let specs = workbench::diagnose::library::library(&model_core::Params::default());
-    let mut out = BTreeSet::new();
-    for (effect, params) in &t {
-        let chain: Vec<String> = params
-            .as_table()
-            .into_iter()
-            .flatten()
-            .filter_map(|(param, v)| {
-                let v = v.as_float().or_else(|| v.as_integer().map(|i| i as f64))?;
-                let sp = specs.iter().find(|sp| sp.effect == effect && sp.param == param && sp.is_chain())?;
-                sp.off_neutral(v).then(|| sp.cause.to_owned())
-            })
-            .collect();
-        let is_chain = specs.iter().any(|sp| sp.effect == effect && sp.is_chain());
-        if is_chain {
-            out.extend(chain);
-        } else {
-            out.insert(effect.clone());
-        }
-    }
-    out
+    let Some(fx) = file.and_then(|f| load_effects(&dir.join(f)).ok()) else { return BTreeSet::new() };
+    library(&model_core::Params::default())
+        .iter()
+        .filter(|sp| sp.off_neutral(current_value(&fx, sp)))
+        .map(|sp| sp.cause.to_owned())
+        .collect()
 }
 
 /// The claims the truth justifies ([`claim_key`]): its library effects, and the chain

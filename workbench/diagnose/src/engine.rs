@@ -848,7 +848,7 @@ impl SetFit {
     /// Whether member `effect` was already in the model: some parameter of it started off
     /// its neutral value.
     fn held(&self, effect: &str) -> bool {
-        self.specs.iter().zip(&self.starts).any(|(sp, s0)| sp.cause == effect && sp.off_neutral(*s0))
+        super::library::holds(&self.specs, &self.starts, effect)
     }
 
     /// Whether some parameter of `effect` has its reported 95 % interval clear of the

@@ -125,6 +125,12 @@ pub fn cause_of(effect: &str, param: &str) -> Option<&'static str> {
     Some(if e.cause == Cause::PerParameter { d.path } else { e.id })
 }
 
+/// Whether the model already holds `cause`: some parameter of it (`specs`, each started
+/// at its `starts`) starts off its neutral value.
+pub fn holds(specs: &[ParamSpec], starts: &[f64], cause: &str) -> bool {
+    specs.iter().zip(starts).any(|(sp, s0)| sp.cause == cause && sp.off_neutral(*s0))
+}
+
 /// `base` with each `(spec, value)` applied.
 pub fn with_values(base: &Effects, specs: &[&ParamSpec], values: &[f64]) -> Effects {
     let mut fx = *base;

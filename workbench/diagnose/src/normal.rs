@@ -154,26 +154,37 @@ impl<'a> Products<'a> {
         let mut gf = vec![vec![0.0; n * n]; self.nf];
         let mut bf = vec![vec![0.0; n]; self.nf];
         for (x, &p) in set.iter().enumerate() {
-            let rows = self.range(p).len();
             for (&q, &col0) in set.iter().zip(&at).skip(x) {
-                let width = self.range(q).len();
-                let (gb, bb) = self.block(p, q);
-                for (f, gk) in gb.iter().enumerate() {
-                    for i in 0..rows {
-                        let j0 = if p == q { i } else { 0 };
-                        for j in j0..width {
-                            let v = gk[i * width + j];
-                            gf[f][(at[x] + i) * n + col0 + j] = v;
-                            gf[f][(col0 + j) * n + at[x] + i] = v;
-                        }
-                    }
-                    if p == q {
-                        bf[f][at[x]..at[x] + rows].copy_from_slice(&bb[f]);
-                    }
-                }
+                self.place(&mut gf, &mut bf, n, (p, at[x]), (q, col0));
             }
         }
         Normal::of_folds(n, gf, bf)
+    }
+
+    /// Block `(p, q)` into a set's equations (`n` columns) at rows from `r0` and columns
+    /// from `c0`, mirrored; map `p`'s own block brings its `J'Wr` too.
+    fn place(
+        &self,
+        gf: &mut [Vec<f64>],
+        bf: &mut [Vec<f64>],
+        n: usize,
+        (p, r0): (usize, usize),
+        (q, c0): (usize, usize),
+    ) {
+        let (rows, width) = (self.range(p).len(), self.range(q).len());
+        let (gb, bb) = self.block(p, q);
+        for ((g, b), (gk, bk)) in gf.iter_mut().zip(bf.iter_mut()).zip(gb.iter().zip(bb)) {
+            for i in 0..rows {
+                let j0 = if p == q { i } else { 0 };
+                for (j, v) in gk[i * width..(i + 1) * width].iter().enumerate().skip(j0) {
+                    g[(r0 + i) * n + c0 + j] = *v;
+                    g[(c0 + j) * n + r0 + i] = *v;
+                }
+            }
+            if p == q {
+                b[r0..r0 + rows].copy_from_slice(bk);
+            }
+        }
     }
 }
 

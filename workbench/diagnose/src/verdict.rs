@@ -11,7 +11,7 @@ use super::engine::{
     by_cause, Candidate, ConfoundedGroup, FittedParam, Location, MapAlias, MapShape, Options, SetFit, Stated,
     VerdictKind,
 };
-use super::library::{with_values, ParamSpec};
+use super::library::{holds, with_values, ParamSpec};
 use super::locate::{follows, region};
 use super::preparation::{channel_energies, flagged_windows, worse_somewhere, Prepared};
 use super::refit::Fit;
@@ -144,8 +144,8 @@ impl Evidence<'_> {
             .or_else(|| self.gauge_on_table(c))
     }
 
-    /// Why a sensor's gain or offset new to the model ([`is_gauge`], every parameter
-    /// starting neutral) is not named when first asked for on top of an empirical table
+    /// Why a sensor's gain or offset new to the model ([`is_gauge`], not one the model
+    /// [`holds`]) is not named when first asked for on top of an empirical table
     /// (the run's data corrected by an earlier round): beside a corrected map it fits what
     /// the table was fitted around more often than a sensor. On proofs 23 and 24 all five
     /// such effects were false — a V_DC gain and offset that are the held connector
@@ -154,8 +154,7 @@ impl Evidence<'_> {
     /// one true gain found so (1,007,387) and 21 true gains and offsets first named
     /// without a table, none false.
     fn gauge_on_table(&self, c: &Candidate) -> Option<String> {
-        let spec = |name: &str| self.s.specs.iter().find(|sp| sp.cause == c.effect && sp.param == name);
-        let new = c.params.iter().all(|fp| spec(fp.name).is_none_or(|sp| !sp.off_neutral(fp.start)));
+        let new = !holds(&self.s.specs, &self.s.starts, c.effect);
         (self.p.data_corrected && new && is_gauge(self.s, c.effect)).then(|| {
             "it is first asked for on top of an empirical table, where a new gain or offset fits what the \
              table was fitted around more often than a sensor"
@@ -1119,12 +1118,13 @@ mod tests {
             .into_iter()
             .filter(|sp| sp.cause == "sensor_gain.c_kistler_l")
             .collect();
-        let s = Sensitivities {
-            groups: vec![("sensor_gain.c_kistler_l", vec![0])],
-            specs,
-            ..supply_resistance_only(&o)
-        };
         let judge = |corrected: bool, start: f64| {
+            let s = Sensitivities {
+                groups: vec![("sensor_gain.c_kistler_l", vec![0])],
+                specs: specs.clone(),
+                starts: vec![start],
+                ..supply_resistance_only(&o)
+            };
             let meas = vec![(0..n).map(|k| 1.08 * wave(k)).collect::<Vec<f64>>()];
             let p = Prepared {
                 data_corrected: corrected,
