@@ -221,8 +221,9 @@ struct Unfound {
 
 impl Unfound {
     /// From the rounds' JSON: a round that named `id` (then [`Why::Dropped`]); else the
-    /// ranking entry of `id` (any of its channels) with the largest reduction, significant
-    /// ones first, and its refusal.
+    /// ranking entry of `id` with the largest reduction, significant ones first, and its
+    /// refusal. `id` is the claim ([`claim_key`]): a C_Kistler_L offset missed is not
+    /// explained by how close a V_DC offset came.
     fn of(rounds: &[Value], id: &str) -> Unfound {
         let label = |e: &str| labels(e, id);
         let named = rounds.iter().position(|j| {
@@ -751,16 +752,17 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         if !excited.contains(*id) {
             continue;
         }
-        let found = claimed.contains(&claim_key(id, param));
+        let key = claim_key(id, param);
+        let found = claimed.contains(&key);
         let beside = match &maps_error {
             Some(m) => Some(m.ratio(dir, &c.scenario, i, &moves_of(&truth_toml, id))?),
             None => None,
         };
-        let unfound = (!found).then(|| Unfound::of(rounds, id));
+        let unfound = (!found).then(|| Unfound::of(rounds, &key));
         if let Some(u) = &unfound {
             let against = beside.map(|r| format!("{r:.2}x the maps' error; ")).unwrap_or_default();
             missed.push(format!("{id} not found ({against}{}: {})", u.why.label(), u.detail));
-        } else if let Some((lo, hi)) = stated_interval(rounds, id, param) {
+        } else if let Some((lo, hi)) = stated_interval(rounds, &key, param) {
             let inside = lo <= *value && *value <= hi;
             coverage.0 += usize::from(inside);
             coverage.1 += 1;
@@ -792,12 +794,14 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
     })
 }
 
-/// Whether the JSON's effect label `e` is effect `id` or one of its channels (`id.channel`).
+/// Whether the JSON's effect label `e` is `id` or one of its channels (`id.channel`); with
+/// a claim ([`claim_key`]) for `id`, a chain effect's own channel only.
 fn labels(e: &str, id: &str) -> bool {
     e == id || e.strip_prefix(id).is_some_and(|r| r.starts_with('.'))
 }
 
-/// The 95 % interval stated for `id`.`param` (to test whether it holds the truth): the interval the
+/// The 95 % interval stated for claim `id` ([`claim_key`]), parameter `param` (to test
+/// whether it holds the truth): the interval the
 /// verdict stated beside the value the final effect file holds, i.e. in the last round
 /// whose verdict names the effect (`stated`: a set's joint refit, not a member's own refit
 /// in the ranking; that round's proposal wrote the value, and a later round keeps it).
