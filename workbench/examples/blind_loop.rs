@@ -139,6 +139,9 @@ struct Library {
     against_maps: Option<f64>,
     /// Why it is not in the final file, when it is not ([`Unfound::of`]).
     why: Option<Why>,
+    /// What it removes of the error at that closest round (none when it was named, or
+    /// when no round ranked it).
+    removes: Option<f64>,
 }
 
 /// What kept a hidden effect out of the final file, in the round that came closest to
@@ -217,6 +220,8 @@ impl Why {
 struct Unfound {
     why: Why,
     detail: String,
+    /// Its share of the error removed there ([`Library::removes`]).
+    removes: Option<f64>,
 }
 
 impl Unfound {
@@ -232,7 +237,7 @@ impl Unfound {
                 .is_some_and(|st| st.iter().any(|x| x["effect"].as_str().is_some_and(label)))
         });
         if let Some(k) = named {
-            return Unfound { why: Why::Dropped, detail: format!("named in round {}", k + 1) };
+            return Unfound { why: Why::Dropped, detail: format!("named in round {}", k + 1), removes: None };
         }
         let entries = rounds.iter().enumerate().flat_map(|(k, j)| {
             let ranking = j["ranking"].as_array().map(Vec::as_slice).unwrap_or_default();
@@ -248,7 +253,9 @@ impl Unfound {
             let (ka, kb) = (key(a.2), key(b.2));
             ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
         });
-        let Some((k, r, c)) = best else { return Unfound { why: Why::NeverRanked, detail: String::new() } };
+        let Some((k, r, c)) = best else {
+            return Unfound { why: Why::NeverRanked, detail: String::new(), removes: None };
+        };
         let refused = c["refused"].as_str().filter(|t| !t.is_empty());
         let why = match (c["significant"].as_bool().unwrap_or(false), refused) {
             (false, _) => Why::NotSignificant,
@@ -263,7 +270,7 @@ impl Unfound {
             }
             _ => head,
         };
-        Unfound { why, detail }
+        Unfound { why, detail, removes: Some(reduction(c)) }
     }
 }
 
@@ -770,7 +777,8 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
                 missed.push(format!("{id}.{param} = {value:.4} outside [{lo:.4}, {hi:.4}]"));
             }
         }
-        library.push(Library { found, against_maps: beside, why: unfound.map(|u| u.why) });
+        let (why, removes) = unfound.map_or((None, None), |u| (Some(u.why), u.removes));
+        library.push(Library { found, against_maps: beside, why, removes });
     }
     let why = if honest && false_claim.is_empty() { Vec::new() } else { why };
     Ok(Outcome {
@@ -829,6 +837,25 @@ fn stated_interval(rounds: &[Value], id: &str, param: &str) -> Option<(f64, f64)
         }
     }
     None
+}
+
+/// The effects not found, counted by what they remove of the error at the round that
+/// came closest: one that removes little there is buried in what else is wrong (beside
+/// perturbed maps, most often), not turned down.
+fn by_removal(o: &[Outcome]) -> String {
+    let bins = [("under 10 %", 0.0, 0.1), ("10-50 %", 0.1, 0.5), ("50 % and more", 0.5, f64::INFINITY)];
+    let unfound: Vec<(f64, bool)> =
+        o.iter().flat_map(|x| x.library.iter().filter_map(move |l| Some((l.removes?, x.maps)))).collect();
+    let rows: Vec<String> = bins
+        .iter()
+        .map(|&(label, lo, hi)| {
+            let inside: Vec<bool> =
+                unfound.iter().filter(|(r, _)| (lo..hi).contains(r)).map(|(_, maps)| *maps).collect();
+            let beside = inside.iter().filter(|m| **m).count();
+            format!("{label} {} ({beside} beside perturbed maps)", inside.len())
+        })
+        .collect();
+    rows.join("; ")
 }
 
 fn pct(a: usize, b: usize) -> String {
@@ -1032,6 +1059,7 @@ fn summary(o: &[Outcome]) -> bool {
             .map(|(w, all, maps)| format!("{} {all} ({maps} beside perturbed maps)", w.label()))
             .collect();
         println!("  not found, why (the round that came closest): {}", rows.join("; "));
+        println!("  not found, by what they remove at that round: {}", by_removal(o));
     }
     println!("nothing hidden, nothing claimed: {}  (target >= 98 %)", pct(quiet, hidden_none));
     println!("95 % intervals covering the truth: {}  (target 90-99 %)", pct(cin, ctot));
