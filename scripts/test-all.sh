@@ -4,6 +4,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# Each crate is built once per clean checkout: incremental caches would only take disk
+# (the machine's disk is shared; CI once stopped on "No space left on device").
+export CARGO_INCREMENTAL=0
+
 step() { printf '\n==> [%ds] %s\n' "$SECONDS" "$*"; }
 as_root() { if [ "$(id -u)" = 0 ]; then "$@"; else sudo "$@"; fi; }
 
