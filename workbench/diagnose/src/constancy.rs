@@ -42,6 +42,9 @@ const MIN_SHARE: f64 = 0.5;
 /// with the load.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Drift {
+    /// The cause the parameter belongs to ([`ParamSpec::cause`]): the refitted
+    /// candidate's own, or an effect already in the model refitted beside it.
+    pub cause: &'static str,
     /// Parameter name.
     pub param: &'static str,
     /// What it changes along.
@@ -155,7 +158,7 @@ impl Refitted<'_> {
                 Along::Time => walks(&points, departure),
                 Along::Speed | Along::Torque => rises(&points, departure),
             };
-            drifts.then(|| Drift { param: specs[i].param, along, first, last })
+            drifts.then(|| Drift { cause: specs[i].cause, param: specs[i].param, along, first, last })
         })
     }
 }

@@ -1099,7 +1099,13 @@ mod tests {
         let in_model = set(vec![2.19, 0.081], [17.2, 0.59], vec![1.5, 0.05]);
         assert!(!in_model.unsupported(&member(false)));
         let drifting = Candidate {
-            drift: Some(Drift { param: "viscous_nm_s_per_rad", along: Along::Speed, first: 0.0, last: 0.2 }),
+            drift: Some(Drift {
+                cause: "differential_friction",
+                param: "viscous_nm_s_per_rad",
+                along: Along::Speed,
+                first: 0.0,
+                last: 0.2,
+            }),
             ..member(true)
         };
         assert!(wide.unsupported(&drifting) && in_model.unsupported(&drifting));
