@@ -90,9 +90,12 @@ fn delay_pair(a: &Candidate, b: &Candidate) -> bool {
 /// ([`Candidate::drift`]): its own, or that of an effect already in the model refitted
 /// beside it (a held connector resistance whose value then changes with speed).
 fn drifts(c: &Candidate) -> Option<String> {
-    c.drift.as_ref().map(|d| match d.cause == c.effect {
-        true => format!("its {} {}", d.param, d.along.what()),
-        false => format!("beside it, {}'s {} {}", d.cause, d.param, d.along.what()),
+    c.drift.as_ref().map(|d| {
+        if d.cause == c.effect {
+            format!("its {} {}", d.param, d.along.what())
+        } else {
+            format!("beside it, {}'s {} {}", d.cause, d.param, d.along.what())
+        }
     })
 }
 
@@ -834,12 +837,13 @@ fn drifting(ev: &Evidence, lead: Option<&Candidate>) -> Option<String> {
     let stop = lead.map(|l| l.effect);
     let c = ev.ranking.iter().take_while(|c| Some(c.effect) != stop).find(|c| c.drift.is_some())?;
     let d = c.drift.as_ref()?;
-    let (fits, than) = match d.cause == c.effect {
-        true => (format!("{} fits only as a value that", c.effect), format!("{} does", c.effect)),
-        false => (
+    let (fits, than) = if d.cause == c.effect {
+        (format!("{} fits only as a value that", c.effect), format!("{} does", c.effect))
+    } else {
+        (
             format!("{} fits only beside a {} whose {} then", c.effect, d.cause, d.param),
             format!("{} and {} do", c.effect, d.cause),
-        ),
+        )
     };
     Some(match d.along {
         Along::Time => format!(
