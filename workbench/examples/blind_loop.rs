@@ -227,10 +227,11 @@ struct Unfound {
 impl Unfound {
     /// From the rounds' JSON: a round that named `id` (then [`Why::Dropped`]); else the
     /// ranking entry of `id` with the largest reduction, significant ones first, and its
-    /// refusal. `id` is the claim ([`claim_key`]): a C_Kistler_L offset missed is not
-    /// explained by how close a V_DC offset came.
+    /// refusal. `id` is the claim ([`claim_key`]), which the JSON's labels are (effects are
+    /// ranked by cause): a C_Kistler_L offset missed is not explained by how close a V_DC
+    /// offset came.
     fn of(rounds: &[Value], id: &str) -> Unfound {
-        let label = |e: &str| labels(e, id);
+        let label = |e: &str| e == id;
         let named = rounds.iter().position(|j| {
             j["stated"]
                 .as_array()
@@ -802,20 +803,14 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
     })
 }
 
-/// Whether the JSON's effect label `e` is `id` or one of its channels (`id.channel`); with
-/// a claim ([`claim_key`]) for `id`, a chain effect's own channel only.
-fn labels(e: &str, id: &str) -> bool {
-    e == id || e.strip_prefix(id).is_some_and(|r| r.starts_with('.'))
-}
-
-/// The 95 % interval stated for claim `id` ([`claim_key`]), parameter `param` (to test
-/// whether it holds the truth): the interval the
-/// verdict stated beside the value the final effect file holds, i.e. in the last round
+/// The 95 % interval stated for claim `id` ([`claim_key`], the JSON's label), parameter
+/// `param` (to test whether it holds the truth): the interval the verdict stated beside
+/// the value the final effect file holds, i.e. in the last round
 /// whose verdict names the effect (`stated`: a set's joint refit, not a member's own refit
 /// in the ranking; that round's proposal wrote the value, and a later round keeps it).
 /// Rounds kept before the JSON had `stated`: the first round naming it, its ranking entry.
 fn stated_interval(rounds: &[Value], id: &str, param: &str) -> Option<(f64, f64)> {
-    let label = |e: &str| labels(e, id);
+    let label = |e: &str| e == id;
     let inside =
         |ci: &Value| -> Option<(f64, f64)> { Some((ci[param][0].as_f64()?, ci[param][1].as_f64()?)) };
     if rounds.iter().any(|j| j.get("stated").is_some()) {
