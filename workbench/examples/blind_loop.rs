@@ -231,21 +231,15 @@ impl Unfound {
     /// ranked by cause): a C_Kistler_L offset missed is not explained by how close a V_DC
     /// offset came.
     fn of(rounds: &[Value], id: &str) -> Unfound {
-        let label = |e: &str| e == id;
-        let named = rounds.iter().position(|j| {
-            j["stated"]
-                .as_array()
-                .is_some_and(|st| st.iter().any(|x| x["effect"].as_str().is_some_and(label)))
-        });
+        let named = rounds
+            .iter()
+            .position(|j| j["stated"].as_array().is_some_and(|st| st.iter().any(|x| x["effect"] == id)));
         if let Some(k) = named {
             return Unfound { why: Why::Dropped, detail: format!("named in round {}", k + 1), removes: None };
         }
         let entries = rounds.iter().enumerate().flat_map(|(k, j)| {
             let ranking = j["ranking"].as_array().map(Vec::as_slice).unwrap_or_default();
-            ranking
-                .iter()
-                .enumerate()
-                .filter_map(move |(r, c)| c["effect"].as_str().filter(|e| label(e)).map(|_| (k, r, c)))
+            ranking.iter().enumerate().filter(move |(_, c)| c["effect"] == id).map(move |(r, c)| (k, r, c))
         });
         let reduction =
             |c: &Value| c["confirmed_reduction"].as_f64().or(c["error_reduction"].as_f64()).unwrap_or(0.0);
@@ -810,21 +804,17 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
 /// in the ranking; that round's proposal wrote the value, and a later round keeps it).
 /// Rounds kept before the JSON had `stated`: the first round naming it, its ranking entry.
 fn stated_interval(rounds: &[Value], id: &str, param: &str) -> Option<(f64, f64)> {
-    let label = |e: &str| e == id;
     let inside =
         |ci: &Value| -> Option<(f64, f64)> { Some((ci[param][0].as_f64()?, ci[param][1].as_f64()?)) };
     if rounds.iter().any(|j| j.get("stated").is_some()) {
         return rounds.iter().rev().find_map(|j| {
-            let st = j["stated"].as_array()?.iter().find(|x| x["effect"].as_str().is_some_and(label))?;
+            let st = j["stated"].as_array()?.iter().find(|x| x["effect"] == id)?;
             inside(&st["ci95"])
         });
     }
     for j in rounds {
-        let named = j["selected"]
-            .as_array()
-            .is_some_and(|s| s.iter().any(|x| x["effect"].as_str().is_some_and(label)));
-        let lead =
-            j["ranking"].as_array().and_then(|r| r.iter().find(|x| x["effect"].as_str().is_some_and(label)));
+        let named = j["selected"].as_array().is_some_and(|s| s.iter().any(|x| x["effect"] == id));
+        let lead = j["ranking"].as_array().and_then(|r| r.iter().find(|x| x["effect"] == id));
         if let (true, Some(l)) = (named || j["kind"] == "missing", lead) {
             if let Some(ok) = inside(&l["ci95"]) {
                 return Some(ok);
