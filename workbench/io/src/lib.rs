@@ -9,6 +9,7 @@ pub mod datadir;
 pub mod effects_file;
 pub mod error;
 pub mod guard;
+pub mod map_prior;
 pub mod map_uncertainty;
 pub mod measure;
 pub mod profile_file;

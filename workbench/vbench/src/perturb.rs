@@ -11,13 +11,11 @@
 //! How a perturbation is built:
 //! - grids are never touched, only values; every value stays finite, so the model-core
 //!   table constructors accept the result ([`ModelData::maps`] is `Ok`);
-//! - the shape is a random Fourier series on the normalised axis `u ∈ [0, 1]`:
-//!   `f(u) = Σ_k √w_k (a_k cos πku + b_k sin πku)`, `a_k, b_k ~ N(0, 1)`, `k = 0..3`,
-//!   weights [`SPECTRUM`]. Its variance is 1 at every `u` (stationary) and its
-//!   correlation `Σ w_k cos(πkΔu)` falls to 0.5 only at `Δu ≈ 0.3`: a perturbation
-//!   looks like a mis-identified curve (offset, tilt, a bow), not like noise. 2-D maps
-//!   use the tensor product of two such series (covariance `w_k w_l`), variance 1;
-//! - each map and each parameter group draws from its own [`Rng`] stream, named by a
+//! - the maps change by the smooth fields of [`simrod_io::map_prior`] (the prior an
+//!   estimator of the maps within their uncertainty fits too): random Fourier series on
+//!   the normalised axes, a perturbation looks like a mis-identified curve (offset, tilt,
+//!   a bow), not like noise; their unit-normal coefficients are drawn here;
+//! - each field and each parameter group draws from its own [`Rng`] stream, named by a
 //!   hash of its name, so adding an item later leaves the others' draws unchanged and the
 //!   same `(data, seed, unc)` always gives the same result;
 //! - magnitudes: the expected mean square of the change over the map's grid points is
@@ -35,15 +33,11 @@
 //! - scalar parameters: log-normal factors (`v · exp(σ g)`, median = identified value),
 //!   so they stay positive.
 
-use simrod_io::datadir::{Map1, Map2, ModelData, ParamLine, FILES_1D, FILES_2D};
+use simrod_io::datadir::{Map1, ModelData, ParamLine, FILES_1D, FILES_2D};
+use simrod_io::map_prior::fields;
 use simrod_numerics::stats::Rng;
 
-/// Weights `w_k` of the cosine/sine pairs `k = 0, 1, 2, 3` of a perturbation shape
-/// (sum 1): an offset, a tilt, a bow and a little wiggle across the axis. ASSUMED: a
-/// map identified from plateau means errs by its fit's low-order shape, which is what a
-/// correlation length of ~0.3 of the axis reproduces.
-pub const SPECTRUM: [f64; 4] = [1.0 / 2.75, 1.0 / 2.75, 0.5 / 2.75, 0.25 / 2.75];
-
+pub use simrod_io::map_prior::SPECTRUM;
 pub use simrod_io::map_uncertainty::{ParamSigma, Sigma, Uncertainty, REGION_WIDTH_PCT};
 
 /// FNV-1a of a name: the RNG stream of one map or parameter group.
@@ -55,240 +49,108 @@ fn rng_for(seed: u64, name: &str) -> Rng {
     Rng::new(seed, stream_of(name))
 }
 
-/// A random smooth 1-D shape on the normalised axis, variance 1 everywhere.
-#[derive(Debug, Clone)]
-struct Field1 {
-    a: [f64; 4],
-    b: [f64; 4],
+/// `n` unit-normal coefficients of one field, from its own stream.
+fn draw(seed: u64, name: &str, n: usize) -> Vec<f64> {
+    let mut rng = rng_for(seed, name);
+    (0..n).map(|_| rng.gauss()).collect()
 }
 
-impl Field1 {
-    fn draw(rng: &mut Rng) -> Self {
-        let mut a = [0.0; 4];
-        let mut b = [0.0; 4];
-        for k in 0..4 {
-            let s = SPECTRUM[k].sqrt();
-            a[k] = s * rng.gauss();
-            b[k] = s * rng.gauss();
-        }
-        Self { a, b }
-    }
-
-    fn at(&self, u: f64) -> f64 {
-        (0..4)
-            .map(|k| {
-                let p = std::f64::consts::PI * k as f64 * u;
-                self.a[k] * p.cos() + self.b[k] * p.sin()
-            })
-            .sum()
+/// Friction keeps the base's sign (it opposes motion).
+fn keep_sign(x: f32, base: f64, v: f64) -> f64 {
+    match () {
+        _ if x > 0.0 && base >= 0.0 => v.max(0.0),
+        _ if x < 0.0 && base <= 0.0 => v.min(0.0),
+        _ => v,
     }
 }
 
-/// A random smooth 2-D shape (tensor product of two [`Field1`] spectra), variance 1.
-#[derive(Debug, Clone)]
-struct Field2 {
-    c: [[[f64; 4]; 4]; 4],
-}
-
-impl Field2 {
-    fn draw(rng: &mut Rng) -> Self {
-        let mut c = [[[0.0; 4]; 4]; 4];
-        for (k, ck) in c.iter_mut().enumerate() {
-            for (l, ckl) in ck.iter_mut().enumerate() {
-                let s = (SPECTRUM[k] * SPECTRUM[l]).sqrt();
-                for v in ckl.iter_mut() {
-                    *v = s * rng.gauss();
-                }
-            }
-        }
-        Self { c }
-    }
-
-    fn at(&self, u: f64, v: f64) -> f64 {
-        let pi = std::f64::consts::PI;
-        let mut s = 0.0;
-        for k in 0..4 {
-            let (cu, su) = ((pi * k as f64 * u).cos(), (pi * k as f64 * u).sin());
-            for l in 0..4 {
-                let (cv, sv) = ((pi * l as f64 * v).cos(), (pi * l as f64 * v).sin());
-                let c = &self.c[k][l];
-                s += c[0] * cu * cv + c[1] * cu * sv + c[2] * su * cv + c[3] * su * sv;
-            }
-        }
-        s
-    }
-}
-
-/// Normaliser of an axis onto [0, 1] (a one-point axis maps to 0).
-fn unit_axis(x: &[f32]) -> impl Fn(f64) -> f64 {
-    let lo = x.first().map_or(0.0, |v| f64::from(*v));
-    let hi = x.last().map_or(0.0, |v| f64::from(*v));
-    let span = hi - lo;
-    move |v| if span > 0.0 { (v - lo) / span } else { 0.0 }
-}
-
-/// Whether a 1-D map is odd: symmetric grid and `y(−x) = −y(x)`, exactly.
-fn is_odd(m: &Map1) -> bool {
-    let n = m.x.len();
-    n > 0 && (0..n).all(|i| m.x[i] == -m.x[n - 1 - i] && m.y[i] == -m.y[n - 1 - i])
-}
-
-/// Whether a 1-D map is 0 at a grid point at 0.
-fn zero_at_zero(m: &Map1) -> bool {
-    m.x.iter().zip(&m.y).any(|(x, y)| *x == 0.0 && *y == 0.0)
-}
-
-fn non_decreasing(v: &[f32]) -> bool {
-    v.windows(2).all(|w| w[1] >= w[0])
-}
-
-/// Friction: absolute smooth change, odd if the base is, 0 at 0 if the base is, no sign
-/// change.
-fn perturb_friction(m: &Map1, sigma: f64, taper_rpm: f64, rng: &mut Rng) -> Map1 {
-    let f = Field1::draw(rng);
-    let odd = is_odd(m);
-    let zero = zero_at_zero(m);
-    let xmax = m.x.iter().fold(0.0_f64, |a, v| a.max(f64::from(v.abs())));
-    let unit = unit_axis(&m.x);
-    let raw: Vec<(f64, f64)> =
-        m.x.iter()
-            .map(|&x| {
-                let x = f64::from(x);
-                let t = if zero && taper_rpm > 0.0 { 1.0 - (-(x / taper_rpm).powi(2)).exp() } else { 1.0 };
-                let shape = if odd {
-                    let u = if xmax > 0.0 { x.abs() / xmax } else { 0.0 };
-                    x.signum() * f.at(u) * if x == 0.0 { 0.0 } else { 1.0 }
-                } else {
-                    f.at(unit(x))
-                };
-                (t, t * shape)
-            })
-            .collect();
-    // Expected mean square of `t · shape` over the grid is mean(t²): scale to sigma.
-    let ms = raw.iter().map(|(t, _)| t * t).sum::<f64>() / raw.len().max(1) as f64;
-    let k = if ms > 0.0 { sigma / ms.sqrt() } else { 0.0 };
-    let mut out = m.clone();
-    for ((y, &x), (_, d)) in out.y.iter_mut().zip(&m.x).zip(&raw) {
-        let base = f64::from(*y);
-        let mut v = base + k * d;
-        // Friction opposes motion: keep the base's sign.
-        if x > 0.0 && base >= 0.0 {
-            v = v.max(0.0);
-        } else if x < 0.0 && base <= 0.0 {
-            v = v.min(0.0);
-        }
-        *y = v as f32;
-    }
-    out
-}
-
-/// Monotone maps (speed, throttle input): relative change of the values strictly between
-/// the lowest (zero / deadband) and highest (limit / full) value; kept non-decreasing.
-fn perturb_monotone(m: &Map1, sigma: f64, rng: &mut Rng) -> Map1 {
-    let f = Field1::draw(rng);
-    let unit = unit_axis(&m.x);
-    let lo = m.y.iter().copied().fold(f32::INFINITY, f32::min);
-    let hi = m.y.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-    let mono = non_decreasing(&m.y);
-    let mut out = m.clone();
+/// Monotone maps: every changed value within the base's range, and non-decreasing if
+/// the base is.
+fn keep_monotone(base: &[f32], out: &mut Map1, changed: &[bool]) {
+    let lo = base.iter().copied().fold(f32::INFINITY, f32::min);
+    let hi = base.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    let mono = non_decreasing(base);
     let mut prev = f32::NEG_INFINITY;
-    for (y, &x) in out.y.iter_mut().zip(&m.x) {
-        if *y > lo && *y < hi {
-            let v = f64::from(*y) * (1.0 + sigma * f.at(unit(f64::from(x))));
-            *y = (v as f32).clamp(lo, hi);
+    for (y, c) in out.y.iter_mut().zip(changed) {
+        if *c {
+            *y = y.clamp(lo, hi);
         }
         if mono {
             *y = y.max(prev);
             prev = *y;
         }
     }
-    out
 }
 
-/// Blend of the motoring and regenerating sigma at load set point `sp` [%].
-fn region_sigma(sp: f64, motoring: f64, regen: f64) -> f64 {
-    motoring + (regen - motoring) * 0.5 * (1.0 + (sp / REGION_WIDTH_PCT).tanh())
-}
-
-/// A map's values with relative change `rel(x, y)` at each grid point.
-fn apply_rel(m: &Map2, rel: impl Fn(f64, f64, f64) -> f64) -> Map2 {
-    let mut out = m.clone();
-    let nx = m.x.len();
-    for (i, z) in out.z.iter_mut().enumerate() {
-        let (x, y) = (f64::from(m.x[i % nx]), f64::from(m.y[i / nx]));
-        let base = f64::from(*z);
-        *z = (base * (1.0 + rel(x, y, base))) as f32;
-    }
-    out
+fn non_decreasing(v: &[f32]) -> bool {
+    v.windows(2).all(|w| w[1] >= w[0])
 }
 
 /// A copy of `data` with every map and the uncertain scalar parameters perturbed: same
-/// grids, smooth (correlation length ~0.3 of each axis, so a perturbation looks like a
-/// mis-identified curve, not noise), seeded. The same `(data, seed, unc)` always gives
-/// the same result.
+/// grids, smooth (the fields of [`simrod_io::map_prior`], each field's coefficients
+/// drawn from its own stream, so adding a field leaves the others' draws unchanged),
+/// seeded. The same `(data, seed, unc)` always gives the same result.
 pub fn perturb(data: &ModelData, seed: u64, unc: &Uncertainty) -> ModelData {
-    let mut out = data.clone();
+    let files: Vec<&str> = FILES_1D.iter().chain(FILES_2D.iter()).copied().collect();
+    let base: Vec<Vec<f32>> = data
+        .maps_1d()
+        .iter()
+        .map(|(_, m)| m.y.clone())
+        .chain(data.maps_2d().iter().map(|(_, m)| m.z.clone()))
+        .collect();
+    let mut delta: Vec<Vec<f64>> = base.iter().map(|v| vec![0.0; v.len()]).collect();
+    let mut changed: Vec<Vec<bool>> = base.iter().map(|v| vec![false; v.len()]).collect();
+    for f in fields(data, unc) {
+        let g = draw(seed, &f.name, f.coefs);
+        for (file, point, d) in f.changes(&g) {
+            if let Some(m) = files.iter().position(|x| *x == file) {
+                delta[m][point] += d;
+                changed[m][point] = true;
+            }
+        }
+    }
+    let value = |m: usize, i: usize| f64::from(base[m][i]) + delta[m][i];
     let note = format!(
         "# PERTURBED (simrod-vbench perturb, seed {seed}): a virtual bench's true data, not the identified data"
     );
+    let mut out = data.clone();
+    let ModelData {
+        throttle_input,
+        speed_fwd,
+        speed_rev,
+        friction,
+        load_torque,
+        load_current,
+        load_power,
+        sut_power,
+        ..
+    } = &mut out;
+    let [fl, fr] = friction;
+    // FILES_1D order: the monotone maps, then friction.
+    for (m, map) in [throttle_input, speed_fwd, speed_rev, fl, fr].into_iter().enumerate() {
+        for (i, y) in map.y.iter_mut().enumerate() {
+            let v = value(m, i);
+            *y = if m >= 3 { keep_sign(map.x[i], f64::from(base[m][i]), v) } else { v } as f32;
+        }
+        if m < 3 {
+            keep_monotone(&base[m], map, &changed[m]);
+        }
+        map.comments.push(note.clone());
+    }
+    let ([tl, tr], [cl, cr], [pl, pr]) = (load_torque, load_current, load_power);
+    // FILES_2D order, after the five 1-D maps.
+    for (k, map) in [tl, tr, cl, cr, pl, pr, sut_power].into_iter().enumerate() {
+        for (i, z) in map.z.iter_mut().enumerate() {
+            *z = value(5 + k, i) as f32;
+        }
+        map.comments.push(note.clone());
+    }
+    perturb_params(&mut out, seed, unc);
+    out
+}
 
-    for (i, side) in ["L", "R"].iter().enumerate() {
-        let mut rng = rng_for(seed, &format!("axle_friction_{side}"));
-        out.friction[i] = perturb_friction(
-            &data.friction[i],
-            unc.friction_nm[i].value,
-            unc.friction_taper_rpm.value,
-            &mut rng,
-        );
-    }
-    out.speed_fwd =
-        perturb_monotone(&data.speed_fwd, unc.speed_map_rel.value, &mut rng_for(seed, "speed_map_fwd"));
-    out.speed_rev =
-        perturb_monotone(&data.speed_rev, unc.speed_map_rel.value, &mut rng_for(seed, "speed_map_rev"));
-    out.throttle_input = perturb_monotone(
-        &data.throttle_input,
-        unc.throttle_map_rel.value,
-        &mut rng_for(seed, "throttle_input_map"),
-    );
-
-    for (i, side) in ["L", "R"].iter().enumerate() {
-        // One relative field per side, in set-point coordinates of the torque map; the
-        // current (T = k_t I) and power maps share it.
-        let tq = &data.load_torque[i];
-        let (ux, uy) = (unit_axis(&tq.x), unit_axis(&tq.y));
-        let ft = Field2::draw(&mut rng_for(seed, &format!("load_torque_{side}")));
-        let (mo, re) = (unc.load_torque_motoring_rel.value, unc.load_torque_regen_rel.value);
-        let rel_t = |x: f64, y: f64| region_sigma(y, mo, re) * ft.at(ux(x), uy(y));
-        out.load_torque[i] = apply_rel(tq, |x, y, _| rel_t(x, y));
-        out.load_current[i] = apply_rel(&data.load_current[i], |x, y, _| rel_t(x, y));
-        let fp = Field2::draw(&mut rng_for(seed, &format!("load_power_{side}")));
-        let sp = unc.load_power_rel.value;
-        out.load_power[i] = apply_rel(&data.load_power[i], |x, y, _| rel_t(x, y) + sp * fp.at(ux(x), uy(y)));
-    }
-    {
-        let m = &data.sut_power;
-        let (ux, uy) = (unit_axis(&m.x), unit_axis(&m.y));
-        let f = Field2::draw(&mut rng_for(seed, "sut_inverter_power"));
-        let (sd, sr) = (unc.sut_power_rel.value, unc.sut_power_regen_rel.value);
-        out.sut_power = apply_rel(m, |x, y, z| if z >= 0.0 { sd } else { sr } * f.at(ux(x), uy(y)));
-    }
-
-    for m in [&mut out.throttle_input, &mut out.speed_fwd, &mut out.speed_rev]
-        .into_iter()
-        .chain(out.friction.iter_mut())
-    {
-        m.comments.push(note.clone());
-    }
-    for m in out
-        .load_torque
-        .iter_mut()
-        .chain(out.load_current.iter_mut())
-        .chain(out.load_power.iter_mut())
-        .chain(std::iter::once(&mut out.sut_power))
-    {
-        m.comments.push(note.clone());
-    }
-
+/// Each parameter group's log-normal factor, from its own stream.
+fn perturb_params(out: &mut ModelData, seed: u64, unc: &Uncertainty) {
     for p in &unc.params {
         let Some(first) = p.keys.first() else { continue };
         let mut rng = rng_for(seed, &format!("param:{first}"));
@@ -307,7 +169,6 @@ pub fn perturb(data: &ModelData, seed: u64, unc: &Uncertainty) -> ModelData {
             }
         }
     }
-    out
 }
 
 /// One changed map or parameter: RMS and max |change| in its unit.
@@ -386,6 +247,8 @@ pub fn summary(base: &ModelData, perturbed: &ModelData) -> PerturbSummary {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use simrod_io::datadir::Map2;
+    use simrod_io::map_prior::{is_odd, shape1, shape2, zero_at_zero, COEFS_1D, COEFS_2D};
 
     fn base() -> ModelData {
         ModelData::builtin().expect("built-in data")
@@ -636,11 +499,11 @@ mod tests {
             assert_eq!(p.throttle_input.y, d.throttle_input.y);
         }
         // A throttle map with interior points does change, monotonically.
-        let mut t = d.throttle_input.clone();
-        t.x = vec![0.0, 1.5, 2.5, 3.5, 4.5, 5.0];
-        t.y = vec![0.0, 0.0, 33.3, 66.7, 100.0, 100.0];
-        let tp = perturb_monotone(&t, 0.05, &mut rng_for(9, "throttle_input_map"));
-        assert_ne!(tp.y, t.y);
+        let mut t = d.clone();
+        t.throttle_input.x = vec![0.0, 1.5, 2.5, 3.5, 4.5, 5.0];
+        t.throttle_input.y = vec![0.0, 0.0, 33.3, 66.7, 100.0, 100.0];
+        let tp = perturb(&t, 9, &Uncertainty::thesis().scaled(3.0)).throttle_input;
+        assert_ne!(tp.y, t.throttle_input.y);
         assert!(non_decreasing(&tp.y));
         assert_eq!((tp.y[1], tp.y[4]), (0.0, 100.0));
     }
@@ -650,12 +513,13 @@ mod tests {
         // On a dense axis, the second difference of a shape is far below its value.
         let u: Vec<f64> = (0..=100).map(|i| f64::from(i) / 100.0).collect();
         for seed in 0..20 {
-            let f = Field1::draw(&mut rng_for(seed, "smooth"));
-            let v: Vec<f64> = u.iter().map(|x| f.at(*x)).collect();
+            let f = draw(seed, "smooth", COEFS_1D);
+            let v: Vec<f64> = u.iter().map(|x| (0..COEFS_1D).map(|j| f[j] * shape1(j, *x)).sum()).collect();
             let d2: Vec<f64> = v.windows(3).map(|w| w[0] - 2.0 * w[1] + w[2]).collect();
             assert!(rms(&d2) < 0.01 * rms(&v), "seed {seed}");
-            let g = Field2::draw(&mut rng_for(seed, "smooth2"));
-            let row: Vec<f64> = u.iter().map(|x| g.at(*x, 0.3)).collect();
+            let g = draw(seed, "smooth2", COEFS_2D);
+            let row: Vec<f64> =
+                u.iter().map(|x| (0..COEFS_2D).map(|j| g[j] * shape2(j, *x, 0.3)).sum()).collect();
             let d2: Vec<f64> = row.windows(3).map(|w| w[0] - 2.0 * w[1] + w[2]).collect();
             assert!(rms(&d2) < 0.01 * rms(&row), "seed {seed}");
         }
