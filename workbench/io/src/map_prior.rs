@@ -21,11 +21,12 @@
 //!   ([`REGION_WIDTH_PCT`]); the load power map takes that field plus its own;
 //! - the SuT inverter power map: relative, σ by the sign of the power.
 //!
-//! The constraints a perturbation keeps beyond this (friction never changes sign, the
-//! monotone maps stay non-decreasing and within their limits) are not linear; the
-//! perturbation applies them after the fields (`simrod_vbench::perturb`).
+//! [`apply`] takes the fields' change for given coefficients (and the parameter groups'
+//! log-normal factors) onto a copy of the data and keeps the constraints that are not
+//! linear: friction never changes sign, the monotone maps stay non-decreasing and within
+//! their limits.
 
-use crate::datadir::{Map1, Map2, ModelData, FILES_1D, FILES_2D};
+use crate::datadir::{Map1, Map2, ModelData, ParamLine, FILES_1D, FILES_2D};
 use crate::map_uncertainty::{Uncertainty, REGION_WIDTH_PCT};
 
 /// Weights `w_k` of the cosine/sine pairs `k = 0, 1, 2, 3` of a field (sum 1): an
@@ -221,6 +222,116 @@ fn load_fields(data: &ModelData, unc: &Uncertainty, i: usize, side: &str) -> [Fi
     ]
 }
 
+/// A copy of `data` with the change of every field (`coefs[f]` the coefficients of
+/// `fields[f]`) and every parameter group of `unc` scaled by `exp(σ_ln z[g])` (a factor
+/// that would not be finite leaves the value), the constraints kept: friction keeps its
+/// sign, a monotone map's changed values stay within its range and non-decreasing.
+/// Comments are left as they are (the caller says what the copy is).
+pub fn apply(
+    data: &ModelData,
+    unc: &Uncertainty,
+    fields: &[Field],
+    coefs: &[Vec<f64>],
+    z: &[f64],
+) -> ModelData {
+    let files: Vec<&str> = FILES_1D.iter().chain(FILES_2D.iter()).copied().collect();
+    let base: Vec<Vec<f32>> = data
+        .maps_1d()
+        .iter()
+        .map(|(_, m)| m.y.clone())
+        .chain(data.maps_2d().iter().map(|(_, m)| m.z.clone()))
+        .collect();
+    let mut delta: Vec<Vec<f64>> = base.iter().map(|v| vec![0.0; v.len()]).collect();
+    let mut changed: Vec<Vec<bool>> = base.iter().map(|v| vec![false; v.len()]).collect();
+    for (f, g) in fields.iter().zip(coefs) {
+        for (file, point, d) in f.changes(g) {
+            if let Some((dm, cm)) =
+                files.iter().position(|x| *x == file).and_then(|m| delta.get_mut(m).zip(changed.get_mut(m)))
+            {
+                if let (Some(dv), Some(cv)) = (dm.get_mut(point), cm.get_mut(point)) {
+                    *dv += d;
+                    *cv = true;
+                }
+            }
+        }
+    }
+    let value = |m: usize, i: usize| f64::from(base[m][i]) + delta[m][i];
+    let mut out = data.clone();
+    let ModelData {
+        throttle_input,
+        speed_fwd,
+        speed_rev,
+        friction,
+        load_torque,
+        load_current,
+        load_power,
+        sut_power,
+        ..
+    } = &mut out;
+    let [fl, fr] = friction;
+    // FILES_1D order: the monotone maps, then friction.
+    for (m, map) in [throttle_input, speed_fwd, speed_rev, fl, fr].into_iter().enumerate() {
+        for (i, y) in map.y.iter_mut().enumerate() {
+            let v = value(m, i);
+            *y = if m >= 3 { keep_sign(map.x[i], f64::from(base[m][i]), v) } else { v } as f32;
+        }
+        if m < 3 {
+            keep_monotone(&base[m], map, &changed[m]);
+        }
+    }
+    let ([tl, tr], [cl, cr], [pl, pr]) = (load_torque, load_current, load_power);
+    // FILES_2D order, after the five 1-D maps.
+    for (k, map) in [tl, tr, cl, cr, pl, pr, sut_power].into_iter().enumerate() {
+        for (i, z) in map.z.iter_mut().enumerate() {
+            *z = value(5 + k, i) as f32;
+        }
+    }
+    for (p, zg) in unc.params.iter().zip(z) {
+        let factor = (p.sigma_ln * zg).exp();
+        for line in &mut out.params {
+            if let ParamLine::Entry { key, value, .. } = line {
+                let v = (f64::from(*value) * factor) as f32;
+                if p.keys.contains(&key.as_str()) && v.is_finite() {
+                    *value = v;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Friction keeps the base's sign (it opposes motion).
+fn keep_sign(x: f32, base: f64, v: f64) -> f64 {
+    match () {
+        _ if x > 0.0 && base >= 0.0 => v.max(0.0),
+        _ if x < 0.0 && base <= 0.0 => v.min(0.0),
+        _ => v,
+    }
+}
+
+/// Monotone maps: every changed value within the base's range, and non-decreasing if
+/// the base is.
+fn keep_monotone(base: &[f32], out: &mut Map1, changed: &[bool]) {
+    let lo = base.iter().copied().fold(f32::INFINITY, f32::min);
+    let hi = base.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    let mono = non_decreasing(base);
+    let mut prev = f32::NEG_INFINITY;
+    for (y, c) in out.y.iter_mut().zip(changed) {
+        if *c {
+            *y = y.clamp(lo, hi);
+        }
+        if mono {
+            *y = y.max(prev);
+            prev = *y;
+        }
+    }
+}
+
+/// Whether values never fall.
+pub fn non_decreasing(v: &[f32]) -> bool {
+    v.windows(2).all(|w| w[1] >= w[0])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -289,5 +400,42 @@ mod tests {
                 assert!((shape2(j, u, v) - shape1(a, u) * shape1(b, v)).abs() < 1e-12, "{j}");
             }
         }
+    }
+
+    /// `apply` adds exactly a field's change where no constraint binds, moves nothing
+    /// else, clamps friction at 0 rather than flipping its sign, and scales a parameter
+    /// group by `exp(σ_ln z)`.
+    #[test]
+    fn apply_adds_the_change_and_keeps_the_constraints() {
+        let (d, u) = thesis();
+        let f = fields(&d, &u);
+        let zero: Vec<Vec<f64>> = f.iter().map(|x| vec![0.0; x.coefs]).collect();
+        let z0 = vec![0.0; u.params.len()];
+        assert_eq!(apply(&d, &u, &f, &zero, &z0), d);
+        let k = f.iter().position(|x| x.name == "sut_inverter_power").unwrap();
+        let mut c = zero.clone();
+        c[k][0] = 1.0;
+        let a = apply(&d, &u, &f, &c, &z0);
+        for t in &f[k].terms {
+            let want = f64::from(d.sut_power.z[t.point]) + t.weights[0];
+            assert!(
+                (f64::from(a.sut_power.z[t.point]) - want).abs() <= 1e-6 * want.abs().max(1.0),
+                "{}",
+                t.point
+            );
+        }
+        assert_eq!((&a.load_torque, &a.friction, &a.params), (&d.load_torque, &d.friction, &d.params));
+        let mut c = zero.clone();
+        c[0][0] = -50.0;
+        let a = apply(&d, &u, &f, &c, &z0);
+        let m = &a.friction[0];
+        assert!(m.x.iter().zip(&m.y).all(|(x, y)| x * y >= 0.0));
+        assert!(m.x.iter().zip(&m.y).any(|(x, y)| *x > 0.0 && *y == 0.0), "{:?}", m.y);
+        let mut z = z0.clone();
+        z[0] = 1.0;
+        let a = apply(&d, &u, &f, &zero, &z);
+        let key = u.params[0].keys[0];
+        let ratio = f64::from(a.param(key).unwrap()) / f64::from(d.param(key).unwrap());
+        assert!((ratio / u.params[0].sigma_ln.exp() - 1.0).abs() < 1e-6, "{key}: {ratio}");
     }
 }

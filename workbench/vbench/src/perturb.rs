@@ -33,8 +33,8 @@
 //! - scalar parameters: log-normal factors (`v · exp(σ g)`, median = identified value),
 //!   so they stay positive.
 
-use simrod_io::datadir::{Map1, ModelData, ParamLine, FILES_1D, FILES_2D};
-use simrod_io::map_prior::fields;
+use simrod_io::datadir::{ModelData, ParamLine, FILES_1D, FILES_2D};
+use simrod_io::map_prior::{apply, fields};
 use simrod_numerics::stats::Rng;
 
 pub use simrod_io::map_prior::SPECTRUM;
@@ -55,65 +55,23 @@ fn draw(seed: u64, name: &str, n: usize) -> Vec<f64> {
     (0..n).map(|_| rng.gauss()).collect()
 }
 
-/// Friction keeps the base's sign (it opposes motion).
-fn keep_sign(x: f32, base: f64, v: f64) -> f64 {
-    match () {
-        _ if x > 0.0 && base >= 0.0 => v.max(0.0),
-        _ if x < 0.0 && base <= 0.0 => v.min(0.0),
-        _ => v,
-    }
-}
-
-/// Monotone maps: every changed value within the base's range, and non-decreasing if
-/// the base is.
-fn keep_monotone(base: &[f32], out: &mut Map1, changed: &[bool]) {
-    let lo = base.iter().copied().fold(f32::INFINITY, f32::min);
-    let hi = base.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-    let mono = non_decreasing(base);
-    let mut prev = f32::NEG_INFINITY;
-    for (y, c) in out.y.iter_mut().zip(changed) {
-        if *c {
-            *y = y.clamp(lo, hi);
-        }
-        if mono {
-            *y = y.max(prev);
-            prev = *y;
-        }
-    }
-}
-
-fn non_decreasing(v: &[f32]) -> bool {
-    v.windows(2).all(|w| w[1] >= w[0])
-}
-
 /// A copy of `data` with every map and the uncertain scalar parameters perturbed: same
-/// grids, smooth (the fields of [`simrod_io::map_prior`], each field's coefficients
-/// drawn from its own stream, so adding a field leaves the others' draws unchanged),
-/// seeded. The same `(data, seed, unc)` always gives the same result.
+/// grids, smooth (the fields of [`simrod_io::map_prior`], each field's coefficients and
+/// each parameter group's factor drawn from its own stream, so adding an item leaves the
+/// others' draws unchanged), seeded. The same `(data, seed, unc)` always gives the same
+/// result.
 pub fn perturb(data: &ModelData, seed: u64, unc: &Uncertainty) -> ModelData {
-    let files: Vec<&str> = FILES_1D.iter().chain(FILES_2D.iter()).copied().collect();
-    let base: Vec<Vec<f32>> = data
-        .maps_1d()
+    let fields = fields(data, unc);
+    let coefs: Vec<Vec<f64>> = fields.iter().map(|f| draw(seed, &f.name, f.coefs)).collect();
+    let z: Vec<f64> = unc
+        .params
         .iter()
-        .map(|(_, m)| m.y.clone())
-        .chain(data.maps_2d().iter().map(|(_, m)| m.z.clone()))
+        .map(|p| p.keys.first().map_or(0.0, |first| rng_for(seed, &format!("param:{first}")).gauss()))
         .collect();
-    let mut delta: Vec<Vec<f64>> = base.iter().map(|v| vec![0.0; v.len()]).collect();
-    let mut changed: Vec<Vec<bool>> = base.iter().map(|v| vec![false; v.len()]).collect();
-    for f in fields(data, unc) {
-        let g = draw(seed, &f.name, f.coefs);
-        for (file, point, d) in f.changes(&g) {
-            if let Some(m) = files.iter().position(|x| *x == file) {
-                delta[m][point] += d;
-                changed[m][point] = true;
-            }
-        }
-    }
-    let value = |m: usize, i: usize| f64::from(base[m][i]) + delta[m][i];
+    let mut out = apply(data, unc, &fields, &coefs, &z);
     let note = format!(
         "# PERTURBED (simrod-vbench perturb, seed {seed}): a virtual bench's true data, not the identified data"
     );
-    let mut out = data.clone();
     let ModelData {
         throttle_input,
         speed_fwd,
@@ -123,52 +81,29 @@ pub fn perturb(data: &ModelData, seed: u64, unc: &Uncertainty) -> ModelData {
         load_current,
         load_power,
         sut_power,
+        params,
         ..
     } = &mut out;
-    let [fl, fr] = friction;
-    // FILES_1D order: the monotone maps, then friction.
-    for (m, map) in [throttle_input, speed_fwd, speed_rev, fl, fr].into_iter().enumerate() {
-        for (i, y) in map.y.iter_mut().enumerate() {
-            let v = value(m, i);
-            *y = if m >= 3 { keep_sign(map.x[i], f64::from(base[m][i]), v) } else { v } as f32;
-        }
-        if m < 3 {
-            keep_monotone(&base[m], map, &changed[m]);
-        }
-        map.comments.push(note.clone());
+    let maps_1d = [throttle_input, speed_fwd, speed_rev].into_iter().chain(friction.iter_mut());
+    for comments in maps_1d.map(|m| &mut m.comments).chain(
+        load_torque
+            .iter_mut()
+            .chain(load_current.iter_mut())
+            .chain(load_power.iter_mut())
+            .chain([sut_power])
+            .map(|m| &mut m.comments),
+    ) {
+        comments.push(note.clone());
     }
-    let ([tl, tr], [cl, cr], [pl, pr]) = (load_torque, load_current, load_power);
-    // FILES_2D order, after the five 1-D maps.
-    for (k, map) in [tl, tr, cl, cr, pl, pr, sut_power].into_iter().enumerate() {
-        for (i, z) in map.z.iter_mut().enumerate() {
-            *z = value(5 + k, i) as f32;
-        }
-        map.comments.push(note.clone());
-    }
-    perturb_params(&mut out, seed, unc);
-    out
-}
-
-/// Each parameter group's log-normal factor, from its own stream.
-fn perturb_params(out: &mut ModelData, seed: u64, unc: &Uncertainty) {
-    for p in &unc.params {
-        let Some(first) = p.keys.first() else { continue };
-        let mut rng = rng_for(seed, &format!("param:{first}"));
-        let factor = (p.sigma_ln * rng.gauss()).exp();
-        for line in &mut out.params {
-            if let ParamLine::Entry { key, value, comment } = line {
-                if p.keys.contains(&key.as_str()) {
-                    let v = (f64::from(*value) * factor) as f32;
-                    if v.is_finite() {
-                        *value = v;
-                        if !comment.contains("PERTURBED") {
-                            comment.push_str(" PERTURBED");
-                        }
-                    }
-                }
+    for line in params {
+        if let ParamLine::Entry { key, value, comment } = line {
+            let moved = unc.params.iter().any(|p| p.keys.contains(&key.as_str()));
+            if moved && Some(*value) != data.param(key) && !comment.contains("PERTURBED") {
+                comment.push_str(" PERTURBED");
             }
         }
     }
+    out
 }
 
 /// One changed map or parameter: RMS and max |change| in its unit.
@@ -247,8 +182,8 @@ pub fn summary(base: &ModelData, perturbed: &ModelData) -> PerturbSummary {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use simrod_io::datadir::Map2;
-    use simrod_io::map_prior::{is_odd, shape1, shape2, zero_at_zero, COEFS_1D, COEFS_2D};
+    use simrod_io::datadir::{Map1, Map2};
+    use simrod_io::map_prior::{is_odd, non_decreasing, shape1, shape2, zero_at_zero, COEFS_1D, COEFS_2D};
 
     fn base() -> ModelData {
         ModelData::builtin().expect("built-in data")
