@@ -8,6 +8,7 @@ pub mod linalg;
 #[cfg(feature = "proof")]
 pub mod proof;
 pub mod twin;
+pub mod within_uncertainty;
 
 // The stages of `engine::diagnose`, in order.
 mod alias;
@@ -27,3 +28,4 @@ mod unread;
 mod verdict;
 
 pub use engine::{diagnose, Diagnosis, Options, ProbeRate, ProfileProbe, Twin, VerdictKind};
+pub use within_uncertainty::{estimate_within_uncertainty, Estimate};
