@@ -29,9 +29,10 @@ use super::preparation::{prepare, run_each, Prepared};
 /// Most fit samples the fit reads (every k-th of [`Prepared::idx`]); the prior's weight
 /// is scaled by the thinning so that it stands against the whole run's information.
 const ROWS: usize = 4000;
-/// Objective evaluations (each accepted one is followed by a new Jacobian): on the 65
-/// nothing-hidden perturbed cases of proofs 24–26 the fourth to sixth change the
-/// channels' error by under 2 %.
+/// Objective evaluations (each accepted one is followed by a new Jacobian). On the 65
+/// nothing-hidden perturbed cases of proofs 24–26 the median error still fell from the
+/// third to the fourth iterate (SiemensEnc 1.12 → 1.02 of the noise), and a step taken
+/// back costs an evaluation (README, "Measured on 2026-12-01", items 3 and 5): six.
 const EVALUATIONS: usize = 6;
 /// Finite-difference step of a coefficient [σ]: small, as the friction's sign clamp and
 /// the maps' interaction make wider secants wrong (0.5 σ left 1,007,537's load fields
