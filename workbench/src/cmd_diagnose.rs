@@ -603,7 +603,8 @@ pub fn render(d: &Diagnosed) -> String {
         o.push_str(&render_empirical(e));
     }
     if let Some(e) = &d.within {
-        o.push_str(&render_within(e));
+        let ranked: Vec<&str> = g.ranking.iter().filter(|c| c.significant).map(|c| c.effect).collect();
+        o.push_str(&render_within(e, &ranked));
     }
     if let Some(loc) = &g.unexplained {
         o.push_str(&format!(
@@ -677,7 +678,7 @@ fn render_empirical(e: &diagnose::empirical::Empirical) -> String {
 
 /// The maps and parameters within their stated uncertainty: what each channel's error
 /// becomes, what moved most.
-fn render_within(e: &diagnose::Estimate) -> String {
+fn render_within(e: &diagnose::Estimate, ranked: &[&str]) -> String {
     let mut o = String::from(
         "\nMAPS AND PARAMETERS WITHIN THEIR STATED UNCERTAINTY (an estimate under an ASSUMED prior, not an identification)\n",
     );
@@ -703,7 +704,35 @@ fn render_within(e: &diagnose::Estimate) -> String {
             left.join(", ")
         )),
     }
+    o.push_str(&render_credits(e, ranked));
     o.push_str("  write it with --write-estimate DIR and run the twin with --data-dir DIR\n");
+    o
+}
+
+/// The library causes beside the estimate: those that add more than the bar beyond it,
+/// and the diagnosis' significant candidates the maps and parameters take as well.
+fn render_credits(e: &diagnose::Estimate, ranked: &[&str]) -> String {
+    let mut o = String::new();
+    let beyond: Vec<&diagnose::within_uncertainty::Credit> =
+        e.credits.iter().filter(|c| c.value() >= e.bar).collect();
+    match beyond.is_empty() {
+        true => o.push_str(&format!("  no library cause adds {:.0} or more beyond it\n", e.bar)),
+        false => o.push_str(&format!(
+            "  beyond it (energy removed, bar {:.0}; confirmed on the simulator):\n",
+            e.bar
+        )),
+    }
+    for c in &beyond {
+        let params: Vec<String> = c.params.iter().map(|(n, v, u)| format!("{n} = {} {u}", num(*v))).collect();
+        o.push_str(&format!("    {:<28} {:>9.0}  {}\n", c.cause, c.value(), params.join(", ")));
+    }
+    for name in ranked {
+        let Some(c) = e.credits.iter().find(|c| c.cause == *name && c.value() < e.bar) else { continue };
+        o.push_str(&format!(
+            "  {name}: the maps and parameters within their uncertainty take it as well ({} of its signature): these runs cannot tell the two readings apart\n",
+            pct(c.shared)
+        ));
+    }
     o
 }
 
@@ -733,7 +762,8 @@ fn kind_name(k: &VerdictKind) -> &'static str {
 /// "unexplained", "noise": {channel: σ},
 /// "proposed_effects": TOML text or null, "empirical", "within_uncertainty": null or
 /// {"fields": [[name, RMS σ]], "params": [[first key, factor]], "channels": [[channel,
-/// energy before, after]], "objective": [..]} (`--maps-within-uncertainty`), "setup",
+/// energy before, after]], "objective": [..], "credits": [{"cause", "params": [[name,
+/// value, unit]], "linear", "confirmed", "shared"}], "bar"} (`--maps-within-uncertainty`), "setup",
 /// "timing_s"}`. NaN becomes null.
 pub fn to_json(d: &Diagnosed) -> Value {
     let g = &d.diagnosis;

@@ -33,6 +33,16 @@ pub struct ParamSpec {
 }
 
 impl ParamSpec {
+    /// The finite-difference step from value `v`: `delta`, or `-delta` where that would
+    /// pass the upper bound.
+    pub fn step_from(&self, v: f64) -> f64 {
+        if v + self.delta <= self.upper {
+            self.delta
+        } else {
+            -self.delta
+        }
+    }
+
     /// Whether it is a cause of the measurement chain (one parameter of one channel's
     /// gain, offset, delay or lag), not of the physics.
     pub fn is_chain(&self) -> bool {

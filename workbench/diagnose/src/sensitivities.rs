@@ -98,11 +98,7 @@ pub(super) fn sensitivities(twin: &dyn Twin, p: &Prepared, o: &Options) -> Resul
         .filter(|s| worth_fitting(s, p, twin.channels(), &energies, &located))
         .collect();
     let starts: Vec<f64> = specs.iter().map(|s| current_value(&o.base, s)).collect();
-    let steps: Vec<f64> = specs
-        .iter()
-        .zip(&starts)
-        .map(|(s, &v)| if v + s.delta <= s.upper { s.delta } else { -s.delta })
-        .collect();
+    let steps: Vec<f64> = specs.iter().zip(&starts).map(|(s, &v)| s.step_from(v)).collect();
     let jobs: Vec<Effects> = specs
         .iter()
         .zip(starts.iter().zip(&steps))

@@ -22,6 +22,10 @@ use simrod_io::datadir::{ModelData, ParamLine};
 use simrod_io::map_prior::{apply, fields, Field};
 use simrod_io::map_uncertainty::Uncertainty;
 
+mod credit;
+
+pub use credit::Credit;
+
 use super::engine::{Options, Twin};
 use super::linalg::solve_spd;
 use super::preparation::{prepare, run_each, Prepared};
@@ -55,6 +59,11 @@ pub struct Estimate {
     pub channels: Vec<(String, f64, f64)>,
     /// The penalised energy at each evaluation (data term plus the prior's).
     pub objective: Vec<f64>,
+    /// Every library cause beside the estimate, highest credit first.
+    pub credits: Vec<Credit>,
+    /// The least credit that counts: the diagnosis' material share of the noise's energy
+    /// on the rows read (`Options::min_reduction_of_noise`).
+    pub bar: f64,
     /// The estimated model data.
     #[serde(skip)]
     pub data: Arc<ModelData>,
@@ -128,8 +137,39 @@ impl<'a> Problem<'a> {
 
     /// The model's outputs on the rows for data `d`.
     fn outputs(&self, d: &Arc<ModelData>) -> Result<Outputs, String> {
-        let y = self.twin.run_data(d, &self.fx, self.p.stride)?;
+        self.outputs_with(d, self.fx)
+    }
+
+    /// As [`Problem::outputs`] with effects `fx`.
+    fn outputs_with(&self, d: &Arc<ModelData>, fx: Effects) -> Result<Outputs, String> {
+        let y = self.twin.run_data(d, &fx, self.p.stride)?;
         Ok(y.iter().map(|s| self.rows.iter().map(|&t| f64::from(s[t])).collect()).collect())
+    }
+
+    /// A run's change from outputs `y0` on the rows (an empty run: none).
+    fn change(&self, y: Vec<Vec<f32>>, y0: &Outputs) -> Outputs {
+        if y.is_empty() {
+            return vec![vec![0.0; self.rows.len()]; y0.len()];
+        }
+        let at = y.iter().zip(y0);
+        at.map(|(s, b)| self.rows.iter().zip(b).map(|(&t, v)| f64::from(s[t]) - v).collect()).collect()
+    }
+
+    /// `C'WC` of columns `cols` with the prior's precision on the diagonal (`n x n`).
+    fn gram(&self, cols: &[Outputs]) -> Vec<f64> {
+        use rayon::prelude::*;
+        let n = cols.len();
+        let lower: Vec<Vec<f64>> =
+            (0..n).into_par_iter().map(|i| (0..=i).map(|j| self.dot(&cols[i], &cols[j])).collect()).collect();
+        let mut g = vec![0.0; n * n];
+        for (i, row) in lower.iter().enumerate() {
+            for (j, v) in row.iter().enumerate() {
+                g[i * n + j] = *v;
+                g[j * n + i] = *v;
+            }
+            g[i * n + i] += self.prior;
+        }
+        g
     }
 
     fn residual(&self, y: &Outputs) -> Outputs {
@@ -171,29 +211,16 @@ impl<'a> Problem<'a> {
                 false => self.twin.run_data(&Arc::new(d), &self.fx, self.p.stride),
             }
         });
-        let zero = || vec![vec![0.0; self.rows.len()]; y0.len()];
-        let column = |y: Vec<Vec<f32>>| -> Outputs {
-            let at = y.iter().zip(y0);
-            at.map(|(s, b)| self.rows.iter().zip(b).map(|(&t, v)| (f64::from(s[t]) - v) / STEP).collect())
-                .collect()
+        let per_sigma = |c: Outputs| -> Outputs {
+            c.into_iter().map(|v| v.into_iter().map(|d| d / STEP).collect()).collect()
         };
-        runs.into_iter().map(|r| r.map(|y| if y.is_empty() { zero() } else { column(y) })).collect()
+        runs.into_iter().map(|r| r.map(|y| per_sigma(self.change(y, y0)))).collect()
     }
 
     /// The Gauss–Newton step from `x`: minimises `|r − C dx|²_W + prior |x + dx|²`.
     fn step(&self, cols: &[Outputs], r: &Outputs, x: &[f64]) -> Option<Vec<f64>> {
         use rayon::prelude::*;
-        let n = cols.len();
-        let lower: Vec<Vec<f64>> =
-            (0..n).into_par_iter().map(|i| (0..=i).map(|j| self.dot(&cols[i], &cols[j])).collect()).collect();
-        let mut g = vec![0.0; n * n];
-        for (i, row) in lower.iter().enumerate() {
-            for (j, v) in row.iter().enumerate() {
-                g[i * n + j] = *v;
-                g[j * n + i] = *v;
-            }
-            g[i * n + i] += self.prior;
-        }
+        let g = self.gram(cols);
         let b: Vec<f64> = cols.par_iter().zip(x).map(|(c, xi)| self.dot(c, r) - self.prior * xi).collect();
         let dx = solve_spd(&g, &b, 1e-12)?;
         Some(x.iter().zip(&dx).map(|(a, d)| a + d).collect())
@@ -219,39 +246,77 @@ pub fn estimate_within_uncertainty(
 /// runs, the model's effects `fx` held as they are.
 pub(super) fn estimate(twin: &dyn Twin, p: &Prepared, o: &Options, fx: Effects) -> Result<Estimate, String> {
     let pb = Problem::new(twin, p, o, fx)?;
-    let mut x = vec![0.0; pb.unknowns.len()];
-    let mut best: Option<(f64, Vec<f64>, Outputs)> = None;
-    let mut objective = Vec::new();
-    let mut before = None;
-    for k in 0..EVALUATIONS {
-        let y = pb.outputs(&Arc::new(pb.data(&x)))?;
-        let r = pb.residual(&y);
-        let j = pb.objective(&r, &x);
-        if !j.is_finite() {
-            return Err("the estimate of the maps within their uncertainty is not finite".into());
-        }
-        objective.push(j);
-        before.get_or_insert_with(|| pb.energies(&r));
-        if let Some((_, xb, _)) = best.as_ref().filter(|(jb, _, _)| j > *jb) {
-            // Worse: halfway back towards the best point, no new Jacobian.
-            x = xb.iter().zip(&x).map(|(a, c)| a + 0.5 * (c - a)).collect();
-            continue;
-        }
-        best = Some((j, x.clone(), r.clone()));
-        if k + 1 < EVALUATIONS {
-            let cols = pb.jacobian(&x, &y)?;
-            x = pb.step(&cols, &r, &x).ok_or("the estimate's normal equations are singular")?;
-        }
-    }
-    let (_, xb, rb) = best.ok_or("no evaluation")?;
-    Ok(summarise(&pb, &xb, &rb, before.unwrap_or_default(), objective))
+    let mut fit = pb.fit()?;
+    let cols = match fit.jacobian.take() {
+        Some(c) => c,
+        None => pb.jacobian(&fit.x, &fit.y)?,
+    };
+    // The diagnosis' material bar on the rows read: a share of the noise's energy there.
+    let bar = o.min_reduction_of_noise * (pb.rows.len() * p.meas.len()) as f64;
+    let credits = credit::credits(&pb, &fit.x, &fit.y, &fit.r, &cols, bar)?;
+    Ok(summarise(&pb, &fit, credits, bar))
 }
 
-/// The estimate's report at its best point `x` with residual `r`.
-fn summarise(pb: &Problem, x: &[f64], r: &Outputs, before: Vec<f64>, objective: Vec<f64>) -> Estimate {
+/// The damped Gauss–Newton fit's best point.
+struct Fit {
+    x: Vec<f64>,
+    y: Outputs,
+    r: Outputs,
+    /// The Jacobian at `x`, if one was taken there.
+    jacobian: Option<Vec<Outputs>>,
+    /// Per channel energy per row with the identified data.
+    before: Vec<f64>,
+    objective: Vec<f64>,
+}
+
+impl Problem<'_> {
+    /// [`EVALUATIONS`] evaluations from the identified data; a step that raises the
+    /// penalised energy is taken back halfway towards the best point.
+    fn fit(&self) -> Result<Fit, String> {
+        let mut x = vec![0.0; self.unknowns.len()];
+        let mut best: Option<(f64, Fit)> = None;
+        let (mut objective, mut before) = (Vec::new(), None);
+        for k in 0..EVALUATIONS {
+            let y = self.outputs(&Arc::new(self.data(&x)))?;
+            let r = self.residual(&y);
+            let j = self.objective(&r, &x);
+            if !j.is_finite() {
+                return Err("the estimate of the maps within their uncertainty is not finite".into());
+            }
+            objective.push(j);
+            before.get_or_insert_with(|| self.energies(&r));
+            if let Some((_, b)) = best.as_ref().filter(|(jb, _)| j > *jb) {
+                x = b.x.iter().zip(&x).map(|(a, c)| a + 0.5 * (c - a)).collect();
+                continue;
+            }
+            let jacobian = match k + 1 < EVALUATIONS {
+                true => Some(self.jacobian(&x, &y)?),
+                false => None,
+            };
+            let next = match &jacobian {
+                Some(cols) => {
+                    Some(self.step(cols, &r, &x).ok_or("the estimate's normal equations are singular")?)
+                }
+                None => None,
+            };
+            let here = Fit { x: x.clone(), y, r, jacobian, before: Vec::new(), objective: Vec::new() };
+            best = Some((j, here));
+            if let Some(n) = next {
+                x = n;
+            }
+        }
+        let (_, mut fit) = best.ok_or("no evaluation")?;
+        fit.before = before.unwrap_or_default();
+        fit.objective = objective;
+        Ok(fit)
+    }
+}
+
+/// The estimate's report at its best point.
+fn summarise(pb: &Problem, fit: &Fit, credits: Vec<Credit>, bar: f64) -> Estimate {
     let mut sums = vec![(0.0, 0usize); pb.fields.len()];
     let mut params = Vec::new();
-    for (u, v) in pb.unknowns.iter().zip(x) {
+    for (u, v) in pb.unknowns.iter().zip(&fit.x) {
         match *u {
             Unknown::Coef { field, .. } => {
                 sums[field].0 += v * v;
@@ -265,13 +330,15 @@ fn summarise(pb: &Problem, x: &[f64], r: &Outputs, before: Vec<f64>, objective: 
     }
     let fields = pb.fields.iter().zip(sums).map(|(f, (s, n))| (f.name.clone(), (s / n.max(1) as f64).sqrt()));
     let names = pb.twin.channels().iter().map(|c| c.name().to_string());
-    let after = pb.energies(r);
+    let after = pb.energies(&fit.r);
     Estimate {
         fields: fields.collect(),
         params,
-        channels: names.zip(before).zip(after).map(|((n, b), a)| (n, b, a)).collect(),
-        objective,
-        data: Arc::new(labelled(&pb.base, pb.data(x))),
+        channels: names.zip(fit.before.iter().copied()).zip(after).map(|((n, b), a)| (n, b, a)).collect(),
+        objective: fit.objective.clone(),
+        credits,
+        bar,
+        data: Arc::new(labelled(&pb.base, pb.data(&fit.x))),
     }
 }
 

@@ -1,0 +1,205 @@
+//! What each library cause adds beyond the maps and parameters within their uncertainty.
+//!
+//! At the estimate, every cause's parameters are fitted jointly with the fields'
+//! coefficients and the parameter groups (linearised there, the prior kept): its credit
+//! is the penalised energy the joint fit removes beyond what the estimate's own next
+//! step removes. A cause whose signature the maps and parameters reproduce within their
+//! uncertainty (an inverter rate scale beside the identified rates, a connector
+//! resistance beside the identified one) gets no credit: its `shared` share says that the
+//! two readings cannot be told apart on these runs, rather than that the cause is absent.
+//! A credit above the diagnosis' material bar is confirmed on the simulator (the joint
+//! step and the estimate's own step, one run each): where the linearisation misleads (a
+//! run whose electrical chain the estimate does not settle), the simulator says so.
+
+use std::sync::Arc;
+
+use super::{Outputs, Problem};
+use crate::library::{current_value, library, with_values, ParamSpec};
+use crate::linalg::solve_spd;
+use crate::preparation::run_each;
+
+/// A library cause beside the estimate.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Credit {
+    /// The cause ([`ParamSpec::cause`]).
+    pub cause: String,
+    /// Its parameters fitted jointly with the estimate: name, value, unit.
+    pub params: Vec<(String, f64, String)>,
+    /// Penalised energy it removes beyond the estimate's own step, linearised.
+    pub linear: f64,
+    /// The same on the simulator; `None` where the linear credit is under the bar.
+    pub confirmed: Option<f64>,
+    /// Largest share of one of its parameters' signature the maps and parameters
+    /// reproduce within their uncertainty (1: they can take it entirely).
+    pub shared: f64,
+}
+
+impl Credit {
+    /// The credit that counts: the simulator's where it was confirmed.
+    pub fn value(&self) -> f64 {
+        self.confirmed.unwrap_or(self.linear)
+    }
+}
+
+/// Every library cause's credit at the estimate `x` (outputs `y`, residual `r`, the
+/// nuisance Jacobian `cols` there), highest first; `bar` is the least that counts.
+pub(super) fn credits(
+    pb: &Problem,
+    x: &[f64],
+    y: &Outputs,
+    r: &Outputs,
+    cols: &[Outputs],
+    bar: f64,
+) -> Result<Vec<Credit>, String> {
+    let specs = library(&pb.o.params);
+    let starts: Vec<f64> = specs.iter().map(|s| current_value(&pb.fx, s)).collect();
+    let steps: Vec<f64> = specs.iter().zip(&starts).map(|(s, &v)| s.step_from(v)).collect();
+    let data = Arc::new(pb.data(x));
+    let jobs: Vec<usize> = (0..specs.len()).collect();
+    let runs = run_each(&jobs, pb.o, |&i| match pb.p.unread.param(&specs[i]) {
+        true => Ok(Vec::new()),
+        false => {
+            pb.twin.run_data(&data, &with_values(&pb.fx, &[&specs[i]], &[starts[i] + steps[i]]), pb.p.stride)
+        }
+    });
+    let effect_cols: Vec<Outputs> =
+        runs.into_iter().map(|o| o.map(|out| pb.change(out, y))).collect::<Result<_, _>>()?;
+    let normal = Normal::new(pb, cols, &effect_cols, r, x)?;
+    let base_step = normal.solve(&[])?;
+    let mut out = Vec::new();
+    for (cause, idx) in causes(&specs) {
+        if idx.iter().all(|&e| normal.gee(e, e) == 0.0) {
+            continue;
+        }
+        let Ok(joint) = normal.solve(&idx) else { continue };
+        let linear = joint.reduction - base_step.reduction;
+        let shared = idx.iter().map(|&e| normal.shared(e)).fold(0.0, f64::max);
+        let values: Vec<f64> = idx
+            .iter()
+            .zip(&joint.dx[normal.n..])
+            .map(|(&e, d)| (starts[e] + steps[e] * d).clamp(specs[e].lower, specs[e].upper))
+            .collect();
+        let confirmed = match linear >= bar {
+            true => Some(confirm(pb, x, &base_step.dx, &joint.dx[..normal.n], (&specs, &idx, &values))?),
+            false => None,
+        };
+        let params = idx
+            .iter()
+            .zip(&values)
+            .map(|(&e, v)| (specs[e].param.to_string(), *v, specs[e].unit.to_string()));
+        out.push(Credit { cause: cause.to_string(), params: params.collect(), linear, confirmed, shared });
+    }
+    out.sort_by(|a, b| b.value().total_cmp(&a.value()));
+    Ok(out)
+}
+
+/// The library's causes with their parameters' indices, in library order.
+fn causes(specs: &[ParamSpec]) -> Vec<(&'static str, Vec<usize>)> {
+    let mut out: Vec<(&'static str, Vec<usize>)> = Vec::new();
+    for (i, s) in specs.iter().enumerate() {
+        match out.iter_mut().find(|(c, _)| *c == s.cause) {
+            Some((_, v)) => v.push(i),
+            None => out.push((s.cause, vec![i])),
+        }
+    }
+    out
+}
+
+/// The simulator's credit: the estimate's own step and the joint step from `x`, each
+/// simulated; the own step counts only where it does not raise the energy.
+fn confirm(
+    pb: &Problem,
+    x: &[f64],
+    own: &[f64],
+    joint: &[f64],
+    (specs, idx, values): (&[ParamSpec], &[usize], &[f64]),
+) -> Result<f64, String> {
+    let energy = |dx: &[f64], fx| -> Result<f64, String> {
+        let xs: Vec<f64> = x.iter().zip(dx).map(|(a, d)| a + d).collect();
+        let y = pb.outputs_with(&Arc::new(pb.data(&xs)), fx)?;
+        Ok(pb.objective(&pb.residual(&y), &xs))
+    };
+    let sp: Vec<&ParamSpec> = idx.iter().map(|&e| &specs[e]).collect();
+    let with = with_values(&pb.fx, &sp, values);
+    let here = pb.objective(&pb.residual(&pb.outputs_with(&Arc::new(pb.data(x)), pb.fx)?), x);
+    Ok(here.min(energy(own, pb.fx)?) - energy(joint, with)?)
+}
+
+/// The normal equations at the estimate: the nuisance block with its prior, the effects'
+/// columns beside it.
+struct Normal {
+    n: usize,
+    /// Nuisance Gram with the prior on its diagonal (`n x n`), and `C'W r − prior x`.
+    gnn: Vec<f64>,
+    bn: Vec<f64>,
+    /// `E'W C` per effect column (`[effect][n]`), `E'W E` (full), `E'W r`.
+    gne: Vec<Vec<f64>>,
+    gee: Vec<Vec<f64>>,
+    be: Vec<f64>,
+}
+
+/// A solved step: the unknowns' change and the quadratic model's energy reduction.
+struct Step {
+    dx: Vec<f64>,
+    reduction: f64,
+}
+
+impl Normal {
+    fn new(
+        pb: &Problem,
+        cols: &[Outputs],
+        effects: &[Outputs],
+        r: &Outputs,
+        x: &[f64],
+    ) -> Result<Self, String> {
+        use rayon::prelude::*;
+        let n = cols.len();
+        let gnn = pb.gram(cols);
+        let bn = cols.par_iter().zip(x).map(|(c, xi)| pb.dot(c, r) - pb.prior * xi).collect();
+        let gne = effects.par_iter().map(|e| cols.iter().map(|c| pb.dot(e, c)).collect()).collect();
+        let gee = effects.par_iter().map(|e| effects.iter().map(|f| pb.dot(e, f)).collect()).collect();
+        let be = effects.par_iter().map(|e| pb.dot(e, r)).collect();
+        Ok(Self { n, gnn, bn, gne, gee, be })
+    }
+
+    fn gee(&self, e: usize, f: usize) -> f64 {
+        self.gee[e][f]
+    }
+
+    /// The step of the nuisance with the effect columns `idx` beside it.
+    fn solve(&self, idx: &[usize]) -> Result<Step, String> {
+        let (n, m) = (self.n, self.n + idx.len());
+        let mut g = vec![0.0; m * m];
+        for i in 0..n {
+            g[i * m..i * m + n].copy_from_slice(&self.gnn[i * n..(i + 1) * n]);
+        }
+        for (a, &e) in idx.iter().enumerate() {
+            for i in 0..n {
+                g[i * m + n + a] = self.gne[e][i];
+                g[(n + a) * m + i] = self.gne[e][i];
+            }
+            for (b, &f) in idx.iter().enumerate() {
+                g[(n + a) * m + n + b] = self.gee[e][f];
+            }
+            // Conditioning only: the effects carry no prior.
+            g[(n + a) * m + n + a] += 1e-9 * self.gee[e][e].max(1e-12);
+        }
+        let b: Vec<f64> = self.bn.iter().copied().chain(idx.iter().map(|&e| self.be[e])).collect();
+        let dx = solve_spd(&g, &b, 1e-12).ok_or("the joint normal equations are singular")?;
+        let reduction = b.iter().zip(&dx).map(|(u, v)| u * v).sum();
+        Ok(Step { dx, reduction })
+    }
+
+    /// Share of effect column `e`'s weighted energy the nuisance (with its prior)
+    /// reproduces: `1 − S/G_ee`, `S` its Schur complement.
+    fn shared(&self, e: usize) -> f64 {
+        let gee = self.gee[e][e];
+        let Some(z) = solve_spd(&self.gnn, &self.gne[e], 1e-12) else { return 0.0 };
+        let s = gee - self.gne[e].iter().zip(&z).map(|(a, b)| a * b).sum::<f64>();
+        if gee > 0.0 {
+            (1.0 - s / gee).clamp(0.0, 1.0)
+        } else {
+            0.0
+        }
+    }
+}
