@@ -77,8 +77,10 @@ How the diagnosis works:
   uncertainty (the thesis's σ and smooth shapes, an ASSUMED prior: docs/MODEL.md) by
   re-simulation, and reports what each channel's error becomes: error the data's own
   uncertainty can explain, or not. It takes up what a missing effect shares with a map's
-  error, so it is no verdict; --write-estimate DIR writes it (labelled ESTIMATED) for
-  --data-dir.
+  error, so beside it each library cause is credited by what it removes beyond it
+  (confirmed on the simulator), and a significant candidate the maps take as well is
+  reported as such: the runs cannot tell the two readings apart. It is no verdict yet;
+  --write-estimate DIR writes the estimate (labelled ESTIMATED) for --data-dir.
   Files with gaps are refused: cut the run at the gap.
   Several runs are a campaign: the twin runs on each with the same effects and every fit is
   joint, so two effects confounded on one run are told apart when another run separates
@@ -120,9 +122,8 @@ pub struct DiagnoseArgs {
     /// Also estimate the maps and parameters within their stated uncertainty
     /// (docs/MODEL.md: the σ of every map and parameter and the smooth shapes of their
     /// error, an ASSUMED prior) by re-simulation, and report how much of each channel's
-    /// error that leaves: error the maps' own uncertainty can explain, or not. The
-    /// diagnosis itself is unchanged. Slow: about 300 simulations per iterate, five
-    /// iterates (about 25 s for five 60 s runs on 2 cores).
+    /// error that leaves, and which library causes add beyond it. The diagnosis itself is
+    /// unchanged. Slow: about 300 simulations per iterate, five iterates.
     #[arg(long)]
     pub maps_within_uncertainty: bool,
 
