@@ -725,7 +725,8 @@ fn render_credits(e: &diagnose::Estimate, ranked: &[&str]) -> String {
     }
     for c in &beyond {
         let params: Vec<String> = c.params.iter().map(|(n, v, u)| format!("{n} = {} {u}", num(*v))).collect();
-        o.push_str(&format!("    {:<28} {:>9.0}  {}\n", c.cause, c.value(), params.join(", ")));
+        let kind = if c.sensor { "sensor" } else { "physical" };
+        o.push_str(&format!("    {:<28} {:>9.0}  {} [{kind}]\n", c.cause, c.value(), params.join(", ")));
     }
     for name in ranked {
         let Some(c) = e.credits.iter().find(|c| c.cause == *name && c.value() < e.bar) else { continue };
@@ -764,7 +765,7 @@ fn kind_name(k: &VerdictKind) -> &'static str {
 /// "proposed_effects": TOML text or null, "empirical", "within_uncertainty": null or
 /// {"fields": [[name, RMS σ]], "params": [[first key, factor]], "channels": [[channel,
 /// energy before, after]], "objective": [..], "credits": [{"cause", "params": [[name,
-/// value, unit]], "linear", "confirmed", "shared"}], "bar"} (`--maps-within-uncertainty`), "setup",
+/// value, unit]], "linear", "confirmed", "shared", "sensor"}], "bar"} (`--maps-within-uncertainty`), "setup",
 /// "timing_s"}`. NaN becomes null.
 pub fn to_json(d: &Diagnosed) -> Value {
     let g = &d.diagnosis;

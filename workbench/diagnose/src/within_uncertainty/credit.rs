@@ -33,6 +33,8 @@ pub struct Credit {
     /// Largest share of one of its parameters' signature the maps and parameters
     /// reproduce within their uncertainty (1: they can take it entirely).
     pub shared: f64,
+    /// A cause of one channel's measurement chain, not of the physics.
+    pub sensor: bool,
 }
 
 impl Credit {
@@ -92,7 +94,15 @@ pub(super) fn credits(
             .iter()
             .zip(&values)
             .map(|(&e, v)| (specs[e].param.to_string(), *v, specs[e].unit.to_string()));
-        out.push(Credit { cause: cause.to_string(), params: params.collect(), linear, confirmed, shared });
+        let sensor = idx.iter().all(|&e| specs[e].is_chain());
+        out.push(Credit {
+            cause: cause.to_string(),
+            params: params.collect(),
+            linear,
+            confirmed,
+            shared,
+            sensor,
+        });
     }
     out.sort_by(|a, b| b.value().total_cmp(&a.value()));
     Ok(out)
