@@ -714,22 +714,23 @@ fn render_within(e: &diagnose::Estimate, ranked: &[&str]) -> String {
 /// and the diagnosis' significant candidates the maps and parameters take as well.
 fn render_credits(e: &diagnose::Estimate, ranked: &[&str]) -> String {
     let mut o = String::new();
-    let beyond: Vec<&diagnose::within_uncertainty::Credit> =
-        e.credits.iter().filter(|c| c.value() >= e.bar).collect();
-    match beyond.is_empty() {
+    match e.set.is_empty() {
         true => o.push_str(&format!("  no library cause adds {:.0} or more beyond it\n", e.bar)),
         false => o.push_str(&format!(
-            "  beyond it (energy removed, bar {:.0}; confirmed on the simulator):\n",
+            "  beyond it, in order (energy each removes beyond it and those before, bar {:.0}; confirmed on the simulator):\n",
             e.bar
         )),
     }
-    for c in &beyond {
+    for c in &e.set {
         let params: Vec<String> = c.params.iter().map(|(n, v, u)| format!("{n} = {} {u}", num(*v))).collect();
         let kind = if c.sensor { "sensor" } else { "physical" };
         o.push_str(&format!("    {:<28} {:>9.0}  {} [{kind}]\n", c.cause, c.value(), params.join(", ")));
     }
     for name in ranked {
-        let Some(c) = e.credits.iter().find(|c| c.cause == *name && c.value() < e.bar) else { continue };
+        let in_set = e.set.iter().any(|c| c.cause == *name);
+        let Some(c) = e.credits.iter().find(|c| c.cause == *name && c.value() < e.bar && !in_set) else {
+            continue;
+        };
         o.push_str(&format!(
             "  {name}: the maps and parameters within their uncertainty take it as well ({} of its signature): these runs cannot tell the two readings apart\n",
             pct(c.shared)
@@ -765,7 +766,8 @@ fn kind_name(k: &VerdictKind) -> &'static str {
 /// "proposed_effects": TOML text or null, "empirical", "within_uncertainty": null or
 /// {"fields": [[name, RMS σ]], "params": [[first key, factor]], "channels": [[channel,
 /// energy before, after]], "objective": [..], "credits": [{"cause", "params": [[name,
-/// value, unit]], "linear", "confirmed", "shared", "sensor"}], "bar"} (`--maps-within-uncertainty`), "setup",
+/// value, unit]], "linear", "confirmed", "shared", "sensor"}] (each cause on its own),
+/// "set": [as "credits"] (the causes chosen greedily, each beyond those before), "bar"} (`--maps-within-uncertainty`), "setup",
 /// "timing_s"}`. NaN becomes null.
 pub fn to_json(d: &Diagnosed) -> Value {
     let g = &d.diagnosis;

@@ -59,8 +59,11 @@ pub struct Estimate {
     pub channels: Vec<(String, f64, f64)>,
     /// The penalised energy at each evaluation (data term plus the prior's).
     pub objective: Vec<f64>,
-    /// Every library cause beside the estimate, highest credit first.
+    /// Every library cause on its own beside the estimate, highest credit first.
     pub credits: Vec<Credit>,
+    /// The causes that add beyond the estimate, chosen greedily: each credited beyond
+    /// the estimate and the causes before it.
+    pub set: Vec<Credit>,
     /// The least credit that counts: the diagnosis' material share of the noise's energy
     /// on the rows read (`Options::min_reduction_of_noise`).
     pub bar: f64,
@@ -253,7 +256,7 @@ pub(super) fn estimate(twin: &dyn Twin, p: &Prepared, o: &Options, fx: Effects) 
     };
     // The diagnosis' material bar on the rows read: a share of the noise's energy there.
     let bar = o.min_reduction_of_noise * (pb.rows.len() * p.meas.len()) as f64;
-    let credits = credit::credits(&pb, &fit.x, &fit.y, &fit.r, &cols, bar)?;
+    let credits = credit::credits(&pb, &fit.x, (&fit.y, &fit.r), &cols, bar)?;
     Ok(summarise(&pb, &fit, credits, bar))
 }
 
@@ -313,7 +316,7 @@ impl Problem<'_> {
 }
 
 /// The estimate's report at its best point.
-fn summarise(pb: &Problem, fit: &Fit, credits: Vec<Credit>, bar: f64) -> Estimate {
+fn summarise(pb: &Problem, fit: &Fit, credits: credit::Credits, bar: f64) -> Estimate {
     let mut sums = vec![(0.0, 0usize); pb.fields.len()];
     let mut params = Vec::new();
     for (u, v) in pb.unknowns.iter().zip(&fit.x) {
@@ -336,7 +339,8 @@ fn summarise(pb: &Problem, fit: &Fit, credits: Vec<Credit>, bar: f64) -> Estimat
         params,
         channels: names.zip(fit.before.iter().copied()).zip(after).map(|((n, b), a)| (n, b, a)).collect(),
         objective: fit.objective.clone(),
-        credits,
+        credits: credits.each,
+        set: credits.set,
         bar,
         data: Arc::new(labelled(&pb.base, pb.data(&fit.x))),
     }
