@@ -549,6 +549,33 @@ fn floors(run: &Path, exact: &Path) -> Vec<(String, f64)> {
         .collect()
 }
 
+/// A TP07 run to fit (`m.csv`) and one it does not see (`h.csv`, 0.9 load scale), each
+/// with its noise-free twin (`m0.csv`, `h0.csv`: the floors), on the bench `bench` says
+/// (its data flags) with noise seeds `seeds`.
+fn fitted_and_unseen(p: &Path, bench: &[&str], seeds: [&str; 2]) {
+    let run = |extra: &[&str], out: &str| {
+        let a = [&["bench", "--profile", "TP07", "-q", "--out", out], bench, extra].concat();
+        ok(&simrod(p, &a));
+    };
+    run(&["--seed", seeds[0]], "m.csv");
+    run(&["--noise", "none"], "m0.csv");
+    run(&["--load-scale", "0.9", "--seed", seeds[1]], "h.csv");
+    run(&["--load-scale", "0.9", "--noise", "none"], "h0.csv");
+}
+
+/// Per channel of `run`: (name, RMSE with the built-in data, RMSE with `--data-dir
+/// data`, the floor from the noise-free `exact`), for the channels compare reports.
+fn errors_with(p: &Path, (run, exact): (&str, &str), data: &str) -> Vec<(String, f64, f64, f64)> {
+    let compare = |args: &[&str]| -> Value {
+        let a = [&["compare", run, "--no-history", "--json"], args].concat();
+        serde_json::from_str(&ok(&simrod(p, &a))).unwrap()
+    };
+    let (c0, c1) = (compare(&[]), compare(&["--data-dir", data]));
+    let rmse = |c: &Value, ch: &str| c["channels"][ch]["rmse"].as_f64();
+    let per = floors(&p.join(run), &p.join(exact)).into_iter();
+    per.filter_map(|(ch, floor)| Some((ch.clone(), rmse(&c0, &ch)?, rmse(&c1, &ch)?, floor))).collect()
+}
+
 /// The bench's throttle chain gives 0.0506 V per percent, not the identified 0.05: the
 /// recorded Throttle and the controller's command are both 1.2 % high. No library effect
 /// is that data value; diagnose must claim none and correct the parameter empirically
@@ -641,15 +668,7 @@ fn a_wrong_map_gets_a_located_empirical_correction_that_holds_on_unseen_data() {
     let d = tempfile::tempdir().unwrap();
     let p = d.path();
     bench_data(p, "strong", |d| d.load_torque[0].z.iter_mut().filter(|z| **z > 0.0).for_each(|z| *z *= 1.08));
-    let bench = |extra: &[&str], out: &str| {
-        let mut a = vec!["bench", "--profile", "TP07", "--data-dir", "strong", "-q", "--out", out];
-        a.extend_from_slice(extra);
-        ok(&simrod(p, &a));
-    };
-    bench(&["--seed", "91"], "m.csv");
-    bench(&["--noise", "none"], "m0.csv");
-    bench(&["--load-scale", "0.9", "--seed", "92"], "h.csv");
-    bench(&["--load-scale", "0.9", "--noise", "none"], "h0.csv");
+    fitted_and_unseen(p, &["--data-dir", "strong"], ["91", "92"]);
 
     let mut data: Option<String> = None;
     for round in 1..=4 {
@@ -690,25 +709,13 @@ fn a_wrong_map_gets_a_located_empirical_correction_that_holds_on_unseen_data() {
         data = Some(out);
     }
     let data = data.expect("a correction was written");
-    for (run, exact) in [("m.csv", "m0.csv"), ("h.csv", "h0.csv")] {
-        let compare = |args: &[&str]| -> Value {
-            let mut a = vec!["compare", run, "--no-history", "--json"];
-            a.extend_from_slice(args);
-            serde_json::from_str(&ok(&simrod(p, &a))).unwrap()
-        };
-        let (c0, c1) = (compare(&[]), compare(&["--data-dir", &data]));
-        let mut checked = 0;
-        for (ch, floor) in floors(&p.join(run), &p.join(exact)) {
-            let (Some(e0), Some(e1)) =
-                (c0["channels"][&ch]["rmse"].as_f64(), c1["channels"][&ch]["rmse"].as_f64())
-            else {
-                continue;
-            };
-            assert!(e1 <= 1.2 * floor, "{run} {ch}: {e1} vs floor {floor} (before {e0})");
-            assert!(e1 <= 1.15 * e0, "{run} {ch} made worse: {e0} -> {e1}");
-            checked += 1;
+    for run in [("m.csv", "m0.csv"), ("h.csv", "h0.csv")] {
+        let errors = errors_with(p, run, &data);
+        for (ch, e0, e1, floor) in &errors {
+            assert!(*e1 <= 1.2 * floor, "{run:?} {ch}: {e1} vs floor {floor} (before {e0})");
+            assert!(*e1 <= 1.15 * e0, "{run:?} {ch} made worse: {e0} -> {e1}");
         }
-        assert!(checked >= 13, "{run}: {checked} channels compared");
+        assert!(errors.len() >= 13, "{run:?}: {} channels compared", errors.len());
     }
 }
 
@@ -1031,15 +1038,7 @@ fn a_lag_beside_perturbed_maps_is_credited_beyond_the_maps_uncertainty() {
 fn perturbed_maps_are_estimated_within_their_uncertainty_and_hold_on_an_unseen_run() {
     let d = tempfile::tempdir().unwrap();
     let p = d.path();
-    let bench = |extra: &[&str], out: &str| {
-        let mut a = vec!["bench", "--profile", "TP07", "--perturb-maps", "9001", "-q", "--out", out];
-        a.extend_from_slice(extra);
-        ok(&simrod(p, &a));
-    };
-    bench(&["--seed", "9002"], "m.csv");
-    bench(&["--noise", "none"], "m0.csv");
-    bench(&["--load-scale", "0.9", "--seed", "9003"], "h.csv");
-    bench(&["--load-scale", "0.9", "--noise", "none"], "h0.csv");
+    fitted_and_unseen(p, &["--perturb-maps", "9001"], ["9002", "9003"]);
     let a = ["diagnose", "m.csv", "--json", "--maps-within-uncertainty", "--write-estimate", "est"];
     let j: Value = serde_json::from_str(&ok(&simrod(p, &a))).unwrap();
     assert_eq!(j["estimate_written"], "est", "{}", j["verdict"]);
@@ -1050,30 +1049,18 @@ fn perturbed_maps_are_estimated_within_their_uncertainty_and_hold_on_an_unseen_r
     assert!(text.contains("# ESTIMATED within the stated uncertainty"), "the written map is labelled");
     // Nothing else is hidden: no library cause adds the material bar beyond the estimate.
     assert!(credited(&j).is_empty(), "credited beyond the estimate: {:?}", credited(&j));
-    for (run, exact, fitted) in [("m.csv", "m0.csv", true), ("h.csv", "h0.csv", false)] {
-        let compare = |args: &[&str]| -> Value {
-            let mut a = vec!["compare", run, "--no-history", "--json"];
-            a.extend_from_slice(args);
-            serde_json::from_str(&ok(&simrod(p, &a))).unwrap()
-        };
-        let (c0, c1) = (compare(&[]), compare(&["--data-dir", "est"]));
-        let mut checked = 0;
-        for (ch, floor) in floors(&p.join(run), &p.join(exact)) {
-            let (Some(e0), Some(e1)) =
-                (c0["channels"][&ch]["rmse"].as_f64(), c1["channels"][&ch]["rmse"].as_f64())
-            else {
-                continue;
-            };
-            assert!(e1 <= 1.15 * e0.max(floor), "{run} {ch} made worse: {e0} -> {e1} (floor {floor})");
+    for (run, fitted) in [(("m.csv", "m0.csv"), true), (("h.csv", "h0.csv"), false)] {
+        let errors = errors_with(p, run, "est");
+        for (ch, e0, e1, floor) in &errors {
+            assert!(*e1 <= 1.15 * e0.max(*floor), "{run:?} {ch} made worse: {e0} -> {e1} (floor {floor})");
             let moved = ["C_Kistler_L", "C_Kistler_R", "SiemensEnc", "SuTMotorEnc"].contains(&ch.as_str());
             if fitted && moved {
-                assert!(e1 <= 1.2 * floor, "{run} {ch}: {e1} vs floor {floor} (before {e0})");
+                assert!(*e1 <= 1.2 * floor, "{run:?} {ch}: {e1} vs floor {floor} (before {e0})");
             }
-            if !fitted && e0 > 1.2 * floor {
-                assert!(e1 < e0, "{run} {ch}: {e0} -> {e1} (floor {floor})");
+            if !fitted && *e0 > 1.2 * floor {
+                assert!(e1 < e0, "{run:?} {ch}: {e0} -> {e1} (floor {floor})");
             }
-            checked += 1;
         }
-        assert!(checked >= 13, "{run}: {checked} channels compared");
+        assert!(errors.len() >= 13, "{run:?}: {} channels compared", errors.len());
     }
 }

@@ -211,7 +211,7 @@ pub(super) fn normal_equations_by(
 
 /// Parameter indices grouped by cause ([`ParamSpec::cause`]), in order of first
 /// appearance.
-fn effect_groups(specs: &[ParamSpec]) -> Vec<(&'static str, Vec<usize>)> {
+pub(super) fn effect_groups(specs: &[ParamSpec]) -> Vec<(&'static str, Vec<usize>)> {
     let mut v: Vec<(&'static str, Vec<usize>)> = Vec::new();
     for (i, s) in specs.iter().enumerate() {
         match v.iter_mut().find(|(e, _)| *e == s.cause) {

@@ -354,37 +354,19 @@ pub const LABEL: &str =
 /// `data` with every table that differs from `base` labelled ([`LABEL`]; a parameter's
 /// comment gets `ESTIMATED`).
 fn labelled(base: &ModelData, mut data: ModelData) -> ModelData {
-    let old: Vec<&[f32]> = base
-        .maps_1d()
-        .into_iter()
-        .map(|(_, m)| m.y.as_slice())
-        .chain(base.maps_2d().into_iter().map(|(_, m)| m.z.as_slice()))
-        .collect();
-    let ModelData {
-        throttle_input,
-        speed_fwd,
-        speed_rev,
-        friction,
-        load_torque,
-        load_current,
-        load_power,
-        sut_power,
-        params,
-        ..
-    } = &mut data;
-    let [fl, fr] = friction;
-    for (k, m) in [throttle_input, speed_fwd, speed_rev, fl, fr].into_iter().enumerate() {
+    let old = base.map_values();
+    let (ones, twos) = data.maps_mut();
+    for (k, m) in ones.into_iter().enumerate() {
         if m.y != old[k] {
             m.comments.push(LABEL.into());
         }
     }
-    let ([tl, tr], [cl, cr], [pl, pr]) = (load_torque, load_current, load_power);
-    for (k, m) in [tl, tr, cl, cr, pl, pr, sut_power].into_iter().enumerate() {
+    for (k, m) in twos.into_iter().enumerate() {
         if m.z != old[5 + k] {
             m.comments.push(LABEL.into());
         }
     }
-    for (line, b) in params.iter_mut().zip(&base.params) {
+    for (line, b) in data.params.iter_mut().zip(&base.params) {
         if let (ParamLine::Entry { value, comment, .. }, ParamLine::Entry { value: v0, .. }) = (line, b) {
             if value != v0 && !comment.contains("ESTIMATED") {
                 comment.push_str(" ESTIMATED");

@@ -336,6 +336,26 @@ impl ModelData {
         ]
     }
 
+    /// Every map mutably, the 1-D ones in [`FILES_1D`] order and the 2-D ones in
+    /// [`FILES_2D`] order.
+    pub fn maps_mut(&mut self) -> ([&mut Map1; 5], [&mut Map2; 7]) {
+        let [fl, fr] = &mut self.friction;
+        let [tl, tr] = &mut self.load_torque;
+        let [cl, cr] = &mut self.load_current;
+        let [pl, pr] = &mut self.load_power;
+        (
+            [&mut self.throttle_input, &mut self.speed_fwd, &mut self.speed_rev, fl, fr],
+            [tl, tr, cl, cr, pl, pr, &mut self.sut_power],
+        )
+    }
+
+    /// Every map's values (`y` of a 1-D map, `z` of a 2-D one), in [`FILES_1D`] then
+    /// [`FILES_2D`] order.
+    pub fn map_values(&self) -> Vec<&[f32]> {
+        let ones = self.maps_1d().into_iter().map(|(_, m)| m.y.as_slice());
+        ones.chain(self.maps_2d().into_iter().map(|(_, m)| m.z.as_slice())).collect()
+    }
+
     /// The 2-D maps with their file names.
     pub fn maps_2d(&self) -> [(&'static str, &Map2); 7] {
         [

@@ -235,53 +235,33 @@ pub fn apply(
     z: &[f64],
 ) -> ModelData {
     let files: Vec<&str> = FILES_1D.iter().chain(FILES_2D.iter()).copied().collect();
-    let base: Vec<Vec<f32>> = data
-        .maps_1d()
-        .iter()
-        .map(|(_, m)| m.y.clone())
-        .chain(data.maps_2d().iter().map(|(_, m)| m.z.clone()))
-        .collect();
+    let base = data.map_values();
     let mut delta: Vec<Vec<f64>> = base.iter().map(|v| vec![0.0; v.len()]).collect();
     let mut changed: Vec<Vec<bool>> = base.iter().map(|v| vec![false; v.len()]).collect();
     for (f, g) in fields.iter().zip(coefs) {
         for (file, point, d) in f.changes(g) {
-            if let Some((dm, cm)) =
-                files.iter().position(|x| *x == file).and_then(|m| delta.get_mut(m).zip(changed.get_mut(m)))
-            {
-                if let (Some(dv), Some(cv)) = (dm.get_mut(point), cm.get_mut(point)) {
-                    *dv += d;
-                    *cv = true;
-                }
+            let m = files.iter().position(|x| *x == file);
+            if let Some((dv, cv)) = m.and_then(|m| delta[m].get_mut(point).zip(changed[m].get_mut(point))) {
+                *dv += d;
+                *cv = true;
             }
         }
     }
     let value = |m: usize, i: usize| f64::from(base[m][i]) + delta[m][i];
     let mut out = data.clone();
-    let ModelData {
-        throttle_input,
-        speed_fwd,
-        speed_rev,
-        friction,
-        load_torque,
-        load_current,
-        load_power,
-        sut_power,
-        ..
-    } = &mut out;
-    let [fl, fr] = friction;
+    let (ones, twos) = out.maps_mut();
     // FILES_1D order: the monotone maps, then friction.
-    for (m, map) in [throttle_input, speed_fwd, speed_rev, fl, fr].into_iter().enumerate() {
+    for (m, map) in ones.into_iter().enumerate() {
         for (i, y) in map.y.iter_mut().enumerate() {
             let v = value(m, i);
             *y = if m >= 3 { keep_sign(map.x[i], f64::from(base[m][i]), v) } else { v } as f32;
         }
         if m < 3 {
-            keep_monotone(&base[m], map, &changed[m]);
+            keep_monotone(base[m], map, &changed[m]);
         }
     }
-    let ([tl, tr], [cl, cr], [pl, pr]) = (load_torque, load_current, load_power);
     // FILES_2D order, after the five 1-D maps.
-    for (k, map) in [tl, tr, cl, cr, pl, pr, sut_power].into_iter().enumerate() {
+    for (k, map) in twos.into_iter().enumerate() {
         for (i, z) in map.z.iter_mut().enumerate() {
             *z = value(5 + k, i) as f32;
         }

@@ -72,30 +72,12 @@ pub fn perturb(data: &ModelData, seed: u64, unc: &Uncertainty) -> ModelData {
     let note = format!(
         "# PERTURBED (simrod-vbench perturb, seed {seed}): a virtual bench's true data, not the identified data"
     );
-    let ModelData {
-        throttle_input,
-        speed_fwd,
-        speed_rev,
-        friction,
-        load_torque,
-        load_current,
-        load_power,
-        sut_power,
-        params,
-        ..
-    } = &mut out;
-    let maps_1d = [throttle_input, speed_fwd, speed_rev].into_iter().chain(friction.iter_mut());
-    for comments in maps_1d.map(|m| &mut m.comments).chain(
-        load_torque
-            .iter_mut()
-            .chain(load_current.iter_mut())
-            .chain(load_power.iter_mut())
-            .chain([sut_power])
-            .map(|m| &mut m.comments),
-    ) {
-        comments.push(note.clone());
+    let (ones, twos) = out.maps_mut();
+    let comments = ones.into_iter().map(|m| &mut m.comments).chain(twos.into_iter().map(|m| &mut m.comments));
+    for c in comments {
+        c.push(note.clone());
     }
-    for line in params {
+    for line in &mut out.params {
         if let ParamLine::Entry { key, value, comment } = line {
             let moved = unc.params.iter().any(|p| p.keys.contains(&key.as_str()));
             if moved && Some(*value) != data.param(key) && !comment.contains("PERTURBED") {

@@ -17,6 +17,7 @@ use super::{Outputs, Problem};
 use crate::library::{current_value, library, with_values, ParamSpec};
 use crate::linalg::solve_spd;
 use crate::preparation::run_each;
+use crate::sensitivities::effect_groups;
 
 /// A library cause beside the estimate.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -85,7 +86,7 @@ pub(super) fn credits(
         runs.into_iter().map(|o| o.map(|out| pb.change(out, y))).collect::<Result<_, _>>()?;
     let normal = Normal::new(pb, cols, &effect_cols, r, x)?;
     let cx = Context { pb, x, specs: &specs, starts, steps, normal, bar };
-    let causes: Vec<(&'static str, Vec<usize>)> = causes(&specs)
+    let causes: Vec<(&'static str, Vec<usize>)> = effect_groups(&specs)
         .into_iter()
         .filter(|(_, idx)| idx.iter().any(|&e| cx.normal.gee(e, e) != 0.0))
         .collect();
@@ -215,18 +216,6 @@ impl Context<'_, '_> {
         let (with, a) = shortest(joint)?;
         Ok((energy(0.0, own)?.min(shortest(own)?.0) - with, a))
     }
-}
-
-/// The library's causes with their parameters' indices, in library order.
-fn causes(specs: &[ParamSpec]) -> Vec<(&'static str, Vec<usize>)> {
-    let mut out: Vec<(&'static str, Vec<usize>)> = Vec::new();
-    for (i, s) in specs.iter().enumerate() {
-        match out.iter_mut().find(|(c, _)| *c == s.cause) {
-            Some((_, v)) => v.push(i),
-            None => out.push((s.cause, vec![i])),
-        }
-    }
-    out
 }
 
 /// Fractions of a linearised step tried on the simulator, in order: a step the
