@@ -30,6 +30,7 @@ use model_core::{CouplingStiffness, Params, RateSet};
 use simrod_numerics::stats::rms;
 
 use simrod_io::datadir::{Map1, Map2, ModelData, ParamLine};
+use simrod_io::map_prior::unit_axis;
 use simrod_io::map_uncertainty::{Uncertainty, REGION_WIDTH_PCT};
 
 use super::engine::{Options, Twin};
@@ -189,16 +190,6 @@ fn replacing(keys: &[&str]) -> Vec<&'static str> {
     EFFECTS.iter().filter(|e| e.in_library() && replaces(e)).map(|e| e.id).collect()
 }
 
-/// `x` mapped to `[0, 1]` over the grid `xs` (0 for a degenerate grid).
-fn unit(xs: &[f32], x: f64) -> f64 {
-    let (lo, hi) = (xs.first().map_or(0.0, |v| f64::from(*v)), xs.last().map_or(0.0, |v| f64::from(*v)));
-    if hi > lo {
-        (x - lo) / (hi - lo)
-    } else {
-        0.0
-    }
-}
-
 /// Friction magnitudes raised by `sd` [N m] away from standstill (tapered to 0 there
 /// over `taper` rpm, as the map is 0 at rest), keeping each value's sign; as a tilt, by
 /// `sd` times the tilt across `|x|`; as a scale, by `sd` times the magnitude over its
@@ -225,13 +216,14 @@ fn shift_friction(m: &mut Map1, sd: f64, taper: f64, shape: Shape) {
 fn scale2(m: &mut Map2, shape: Shape, rel: impl Fn(f64, f64, f64) -> f64) {
     let nx = m.x.len().max(1);
     let size = rms(&m.z.iter().map(|z| f64::from(*z)).collect::<Vec<f64>>());
+    let unit = unit_axis(&m.x);
     for (i, z) in m.z.iter_mut().enumerate() {
         let (x, y) = (m.x.get(i % nx).copied().unwrap_or(0.0), m.y.get(i / nx).copied().unwrap_or(0.0));
         let v = f64::from(*z);
         let r = rel(f64::from(x), f64::from(y), v);
         *z = match shape {
             Shape::Other => v + r * size,
-            _ => v * (1.0 + shape.across(unit(&m.x, f64::from(x))) * r),
+            _ => v * (1.0 + shape.across(unit(f64::from(x))) * r),
         } as f32;
     }
 }
@@ -245,14 +237,14 @@ fn scale_interior(m: &mut Map1, rel: f64, shape: Shape) {
     let hi = m.y.iter().copied().fold(f32::NEG_INFINITY, f32::max);
     let inside = |y: f32| y > lo && y < hi;
     let size = rms(&m.y.iter().filter(|y| inside(**y)).map(|y| f64::from(*y)).collect::<Vec<f64>>());
-    let xs = m.x.clone();
+    let unit = unit_axis(&m.x);
     let mut prev = f32::NEG_INFINITY;
-    for (y, x) in m.y.iter_mut().zip(&xs) {
+    for (y, x) in m.y.iter_mut().zip(&m.x) {
         if inside(*y) {
             let v = f64::from(*y);
             let moved = match shape {
                 Shape::Other => v + rel * size,
-                _ => v * (1.0 + shape.across(unit(&xs, f64::from(*x))) * rel),
+                _ => v * (1.0 + shape.across(unit(f64::from(*x))) * rel),
             };
             *y = moved.clamp(f64::from(lo), f64::from(hi)) as f32;
         }

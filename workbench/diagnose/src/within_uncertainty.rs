@@ -220,11 +220,17 @@ impl<'a> Problem<'a> {
         runs.into_iter().map(|r| r.map(|y| per_sigma(self.change(y, y0)))).collect()
     }
 
+    /// The normal equations of a step from `x` with columns `cols` and residual `r`:
+    /// `C'WC` with the prior's precision on the diagonal, and `C'W r − prior x`.
+    fn normal(&self, cols: &[Outputs], r: &Outputs, x: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        use rayon::prelude::*;
+        let b = cols.par_iter().zip(x).map(|(c, xi)| self.dot(c, r) - self.prior * xi).collect();
+        (self.gram(cols), b)
+    }
+
     /// The Gauss–Newton step from `x`: minimises `|r − C dx|²_W + prior |x + dx|²`.
     fn step(&self, cols: &[Outputs], r: &Outputs, x: &[f64]) -> Option<Vec<f64>> {
-        use rayon::prelude::*;
-        let g = self.gram(cols);
-        let b: Vec<f64> = cols.par_iter().zip(x).map(|(c, xi)| self.dot(c, r) - self.prior * xi).collect();
+        let (g, b) = self.normal(cols, r, x);
         let dx = solve_spd(&g, &b, 1e-12)?;
         Some(x.iter().zip(&dx).map(|(a, d)| a + d).collect())
     }
@@ -250,25 +256,34 @@ pub fn estimate_within_uncertainty(
 pub(super) fn estimate(twin: &dyn Twin, p: &Prepared, o: &Options, fx: Effects) -> Result<Estimate, String> {
     let pb = Problem::new(twin, p, o, fx)?;
     let mut fit = pb.fit()?;
-    let cols = match fit.jacobian.take() {
+    let best = &mut fit.best;
+    let cols = match best.jacobian.take() {
         Some(c) => c,
-        None => pb.jacobian(&fit.x, &fit.y)?,
+        None => pb.jacobian(&best.x, &best.y)?,
     };
     // The diagnosis' material bar on the rows read: a share of the noise's energy there.
     let bar = o.min_reduction_of_noise * (pb.rows.len() * p.meas.len()) as f64;
-    let credits = credit::credits(&pb, &fit.x, (&fit.y, &fit.r), &cols, bar)?;
+    let credits = credit::credits(&pb, best, &cols, bar)?;
     Ok(summarise(&pb, &fit, credits, bar))
 }
 
-/// The damped Gauss–Newton fit's best point.
-struct Fit {
+/// One evaluated point of the fit.
+struct Point {
     x: Vec<f64>,
     y: Outputs,
     r: Outputs,
-    /// The Jacobian at `x`, if one was taken there.
+    /// The penalised energy there.
+    energy: f64,
+    /// The Jacobian there, if one was taken.
     jacobian: Option<Vec<Outputs>>,
+}
+
+/// The damped Gauss–Newton fit.
+struct Fit {
+    best: Point,
     /// Per channel energy per row with the identified data.
     before: Vec<f64>,
+    /// The penalised energy at each evaluation.
     objective: Vec<f64>,
 }
 
@@ -277,18 +292,18 @@ impl Problem<'_> {
     /// penalised energy is taken back halfway towards the best point.
     fn fit(&self) -> Result<Fit, String> {
         let mut x = vec![0.0; self.unknowns.len()];
-        let mut best: Option<(f64, Fit)> = None;
+        let mut best: Option<Point> = None;
         let (mut objective, mut before) = (Vec::new(), None);
         for k in 0..EVALUATIONS {
             let y = self.outputs(&Arc::new(self.data(&x)))?;
             let r = self.residual(&y);
-            let j = self.objective(&r, &x);
-            if !j.is_finite() {
+            let energy = self.objective(&r, &x);
+            if !energy.is_finite() {
                 return Err("the estimate of the maps within their uncertainty is not finite".into());
             }
-            objective.push(j);
+            objective.push(energy);
             before.get_or_insert_with(|| self.energies(&r));
-            if let Some((_, b)) = best.as_ref().filter(|(jb, _)| j > *jb) {
+            if let Some(b) = best.as_ref().filter(|b| energy > b.energy) {
                 x = b.x.iter().zip(&x).map(|(a, c)| a + 0.5 * (c - a)).collect();
                 continue;
             }
@@ -302,16 +317,13 @@ impl Problem<'_> {
                 }
                 None => None,
             };
-            let here = Fit { x: x.clone(), y, r, jacobian, before: Vec::new(), objective: Vec::new() };
-            best = Some((j, here));
+            best = Some(Point { x: x.clone(), y, r, energy, jacobian });
             if let Some(n) = next {
                 x = n;
             }
         }
-        let (_, mut fit) = best.ok_or("no evaluation")?;
-        fit.before = before.unwrap_or_default();
-        fit.objective = objective;
-        Ok(fit)
+        let best = best.ok_or("no evaluation")?;
+        Ok(Fit { best, before: before.unwrap_or_default(), objective })
     }
 }
 
@@ -319,7 +331,7 @@ impl Problem<'_> {
 fn summarise(pb: &Problem, fit: &Fit, credits: credit::Credits, bar: f64) -> Estimate {
     let mut sums = vec![(0.0, 0usize); pb.fields.len()];
     let mut params = Vec::new();
-    for (u, v) in pb.unknowns.iter().zip(&fit.x) {
+    for (u, v) in pb.unknowns.iter().zip(&fit.best.x) {
         match *u {
             Unknown::Coef { field, .. } => {
                 sums[field].0 += v * v;
@@ -333,7 +345,7 @@ fn summarise(pb: &Problem, fit: &Fit, credits: credit::Credits, bar: f64) -> Est
     }
     let fields = pb.fields.iter().zip(sums).map(|(f, (s, n))| (f.name.clone(), (s / n.max(1) as f64).sqrt()));
     let names = pb.twin.channels().iter().map(|c| c.name().to_string());
-    let after = pb.energies(&fit.r);
+    let after = pb.energies(&fit.best.r);
     Estimate {
         fields: fields.collect(),
         params,
@@ -342,7 +354,7 @@ fn summarise(pb: &Problem, fit: &Fit, credits: credit::Credits, bar: f64) -> Est
         credits: credits.each,
         set: credits.set,
         bar,
-        data: Arc::new(labelled(&pb.base, pb.data(&fit.x))),
+        data: Arc::new(labelled(&pb.base, pb.data(&fit.best.x))),
     }
 }
 

@@ -8,12 +8,12 @@
 //! resistance beside the identified one) gets no credit: its `shared` share says that the
 //! two readings cannot be told apart on these runs, rather than that the cause is absent.
 //! A credit above the diagnosis' material bar is confirmed on the simulator (the joint
-//! step and the estimate's own step, one run each): where the linearisation misleads (a
-//! run whose electrical chain the estimate does not settle), the simulator says so.
+//! step and the estimate's own step, each shortened until the energy stops falling):
+//! where the linearisation misleads, the simulator says so.
 
 use std::sync::Arc;
 
-use super::{Outputs, Problem};
+use super::{Outputs, Point, Problem};
 use crate::library::{current_value, library, with_values, ParamSpec};
 use crate::linalg::solve_spd;
 use crate::preparation::run_each;
@@ -61,20 +61,13 @@ pub(super) struct Credits {
     pub set: Vec<Credit>,
 }
 
-/// Every library cause's credit at the estimate `x` (outputs `y`, residual `r`, the
-/// nuisance Jacobian `cols` there), and the set the credits select; `bar` is the least
-/// that counts.
-pub(super) fn credits(
-    pb: &Problem,
-    x: &[f64],
-    (y, r): (&Outputs, &Outputs),
-    cols: &[Outputs],
-    bar: f64,
-) -> Result<Credits, String> {
+/// Every library cause's credit at the estimate `at` (the nuisance Jacobian `cols`
+/// there), and the set the credits select; `bar` is the least that counts.
+pub(super) fn credits(pb: &Problem, at: &Point, cols: &[Outputs], bar: f64) -> Result<Credits, String> {
     let specs = library(&pb.o.params);
     let starts: Vec<f64> = specs.iter().map(|s| current_value(&pb.fx, s)).collect();
     let steps: Vec<f64> = specs.iter().zip(&starts).map(|(s, &v)| s.step_from(v)).collect();
-    let data = Arc::new(pb.data(x));
+    let data = Arc::new(pb.data(&at.x));
     let jobs: Vec<usize> = (0..specs.len()).collect();
     let runs = run_each(&jobs, pb.o, |&i| match pb.p.unread.param(&specs[i]) {
         true => Ok(Vec::new()),
@@ -83,15 +76,17 @@ pub(super) fn credits(
         }
     });
     let effect_cols: Vec<Outputs> =
-        runs.into_iter().map(|o| o.map(|out| pb.change(out, y))).collect::<Result<_, _>>()?;
-    let normal = Normal::new(pb, cols, &effect_cols, r, x)?;
-    let cx = Context { pb, x, specs: &specs, starts, steps, normal, bar };
+        runs.into_iter().map(|o| o.map(|out| pb.change(out, &at.y))).collect::<Result<_, _>>()?;
+    let normal = Normal::new(pb, cols, &effect_cols, &at.r, &at.x);
+    let shared = (0..effect_cols.len()).map(|e| normal.shared(e)).collect();
+    let cx = Context { pb, at, specs: &specs, starts, steps, normal, shared, bar };
     let causes: Vec<(&'static str, Vec<usize>)> = effect_groups(&specs)
         .into_iter()
         .filter(|(_, idx)| idx.iter().any(|&e| cx.normal.gee(e, e) != 0.0))
         .collect();
+    let alone = cx.normal.solve(&[])?;
     let mut each: Vec<Credit> =
-        causes.iter().filter_map(|(c, idx)| cx.credit(c, idx, &[], true).ok()).collect();
+        causes.iter().filter_map(|(c, idx)| cx.credit(c, idx, (&[], &alone), true).ok()).collect();
     each.sort_by(|a, b| b.value().total_cmp(&a.value()));
     let set = cx.select(&causes)?;
     Ok(Credits { each, set })
@@ -100,11 +95,14 @@ pub(super) fn credits(
 /// The fixed parts of the credits.
 struct Context<'a, 'b> {
     pb: &'a Problem<'b>,
-    x: &'a [f64],
+    /// The estimate (its penalised energy is what the own step starts from).
+    at: &'a Point,
     specs: &'a [ParamSpec],
     starts: Vec<f64>,
     steps: Vec<f64>,
     normal: Normal,
+    /// Per effect column, [`Normal::shared`].
+    shared: Vec<f64>,
     bar: f64,
 }
 
@@ -120,24 +118,24 @@ impl Context<'_, '_> {
             .collect()
     }
 
-    /// Cause `cause` (columns `idx`) beyond the estimate and the causes `selected`:
-    /// linearised, and confirmed on the simulator when `confirm` and above the bar.
+    /// Cause `cause` (columns `idx`) beyond the estimate and the causes `selected`, whose
+    /// own step is `base`: linearised, and confirmed on the simulator when `confirm` and
+    /// above the bar.
     fn credit(
         &self,
         cause: &str,
         idx: &[usize],
-        selected: &[usize],
+        (selected, base): (&[usize], &Step),
         confirm: bool,
     ) -> Result<Credit, String> {
-        let base = self.normal.solve(selected)?;
         let both: Vec<usize> = selected.iter().chain(idx).copied().collect();
         let joint = self.normal.solve(&both)?;
         let linear = joint.reduction - base.reduction;
-        let shared = idx.iter().map(|&e| self.normal.shared(e)).fold(0.0, f64::max);
+        let shared = idx.iter().map(|&e| self.shared[e]).fold(0.0, f64::max);
         let mut values = self.values(&both, &joint);
         let confirmed = match confirm && linear >= self.bar {
             true => {
-                let own = (&base.dx[..self.normal.n], selected, &self.values(selected, &base)[..]);
+                let own = (&base.dx[..self.normal.n], selected, &self.values(selected, base)[..]);
                 let (c, a) = self.confirm(own, (&joint.dx[..self.normal.n], &both, &values))?;
                 values
                     .iter_mut()
@@ -160,16 +158,18 @@ impl Context<'_, '_> {
     fn select(&self, causes: &[(&'static str, Vec<usize>)]) -> Result<Vec<Credit>, String> {
         let (mut set, mut selected): (Vec<Credit>, Vec<usize>) = (Vec::new(), Vec::new());
         while set.len() < MAX_SET {
+            let base = self.normal.solve(&selected)?;
             let open = causes.iter().filter(|(c, _)| set.iter().all(|s| s.cause != *c));
             let mut linear: Vec<(f64, &(&'static str, Vec<usize>))> = open
                 .filter_map(|cause| {
-                    Some((self.credit(cause.0, &cause.1, &selected, false).ok()?.linear, cause))
+                    Some((self.credit(cause.0, &cause.1, (&selected, &base), false).ok()?.linear, cause))
                 })
                 .filter(|(l, _)| *l >= self.bar)
                 .collect();
             linear.sort_by(|a, b| b.0.total_cmp(&a.0));
             let tried = linear.iter().take(CONFIRMED_PER_ROUND);
-            let confirmed = tried.map(|(_, (c, idx))| self.credit(c, idx, &selected, true).map(|k| (k, idx)));
+            let confirmed =
+                tried.map(|(_, (c, idx))| self.credit(c, idx, (&selected, &base), true).map(|k| (k, idx)));
             let mut best: Option<(Credit, &Vec<usize>)> = None;
             for k in confirmed {
                 let k = k?;
@@ -195,7 +195,7 @@ impl Context<'_, '_> {
     ) -> Result<(f64, f64), String> {
         let pb = self.pb;
         let energy = |a: f64, (dx, idx, values): (&[f64], &[usize], &[f64])| -> Result<f64, String> {
-            let xs: Vec<f64> = self.x.iter().zip(dx).map(|(u, d)| u + a * d).collect();
+            let xs: Vec<f64> = self.at.x.iter().zip(dx).map(|(u, d)| u + a * d).collect();
             let sp: Vec<&ParamSpec> = idx.iter().map(|&e| &self.specs[e]).collect();
             let v: Vec<f64> =
                 idx.iter().zip(values).map(|(&e, v)| self.starts[e] + a * (v - self.starts[e])).collect();
@@ -214,7 +214,7 @@ impl Context<'_, '_> {
             Ok(best)
         };
         let (with, a) = shortest(joint)?;
-        Ok((energy(0.0, own)?.min(shortest(own)?.0) - with, a))
+        Ok((self.at.energy.min(shortest(own)?.0) - with, a))
     }
 }
 
@@ -244,21 +244,13 @@ struct Step {
 }
 
 impl Normal {
-    fn new(
-        pb: &Problem,
-        cols: &[Outputs],
-        effects: &[Outputs],
-        r: &Outputs,
-        x: &[f64],
-    ) -> Result<Self, String> {
+    fn new(pb: &Problem, cols: &[Outputs], effects: &[Outputs], r: &Outputs, x: &[f64]) -> Self {
         use rayon::prelude::*;
-        let n = cols.len();
-        let gnn = pb.gram(cols);
-        let bn = cols.par_iter().zip(x).map(|(c, xi)| pb.dot(c, r) - pb.prior * xi).collect();
+        let (gnn, bn) = pb.normal(cols, r, x);
         let gne = effects.par_iter().map(|e| cols.iter().map(|c| pb.dot(e, c)).collect()).collect();
         let gee = effects.par_iter().map(|e| effects.iter().map(|f| pb.dot(e, f)).collect()).collect();
         let be = effects.par_iter().map(|e| pb.dot(e, r)).collect();
-        Ok(Self { n, gnn, bn, gne, gee, be })
+        Self { n: cols.len(), gnn, bn, gne, gee, be }
     }
 
     fn gee(&self, e: usize, f: usize) -> f64 {
