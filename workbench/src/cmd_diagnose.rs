@@ -78,9 +78,11 @@ How the diagnosis works:
   re-simulation, and reports what each channel's error becomes: error the data's own
   uncertainty can explain, or not. It takes up what a missing effect shares with a map's
   error, so beside it each library cause is credited by what it removes beyond it
-  (confirmed on the simulator), and a significant candidate the maps take as well is
-  reported as such: the runs cannot tell the two readings apart. It is no verdict yet;
-  --write-estimate DIR writes the estimate (labelled ESTIMATED) for --data-dir.
+  (confirmed on the simulator); the best is taken and the maps estimated again from the
+  identified data with it, until no cause adds more (at most four). A significant
+  candidate the maps take as well is reported as such: the runs cannot tell the two
+  readings apart. An estimate that has not settled credits nothing. It is no verdict
+  yet; --write-estimate DIR writes the estimate (labelled ESTIMATED) for --data-dir.
   Files with gaps are refused: cut the run at the gap.
   Several runs are a campaign: the twin runs on each with the same effects and every fit is
   joint, so two effects confounded on one run are told apart when another run separates
@@ -122,8 +124,9 @@ pub struct DiagnoseArgs {
     /// Also estimate the maps and parameters within their stated uncertainty
     /// (docs/MODEL.md: the σ of every map and parameter and the smooth shapes of their
     /// error, an ASSUMED prior) by re-simulation, and report how much of each channel's
-    /// error that leaves, and which library causes add beyond it. The diagnosis itself is
-    /// unchanged. Slow: about 300 simulations per iterate, five iterates.
+    /// error that leaves, and which library causes add beyond it (each taken refitted with
+    /// the maps). The diagnosis itself is unchanged. Slow: about 300 simulations per
+    /// iterate, up to ten iterates until settled, again for each cause taken.
     #[arg(long)]
     pub maps_within_uncertainty: bool,
 
@@ -683,9 +686,15 @@ fn render_within(e: &diagnose::Estimate, ranked: &[&str]) -> String {
     let mut o = String::from(
         "\nMAPS AND PARAMETERS WITHIN THEIR STATED UNCERTAINTY (an estimate under an ASSUMED prior, not an identification)\n",
     );
-    o.push_str("  channel         error energy / noise: identified -> estimated\n");
-    for (c, before, after) in &e.channels {
-        o.push_str(&format!("    {c:<14} {before:>8.2} -> {after:>6.2}\n"));
+    match e.after_set.is_empty() {
+        true => o.push_str("  channel         error energy / noise: identified -> estimated\n"),
+        false => o.push_str(
+            "  channel         error energy / noise: identified -> estimated -> with the set below\n",
+        ),
+    }
+    for (k, (c, before, after)) in e.channels.iter().enumerate() {
+        let with = e.after_set.get(k).map_or(String::new(), |v| format!(" -> {v:>6.2}"));
+        o.push_str(&format!("    {c:<14} {before:>8.2} -> {after:>6.2}{with}\n"));
     }
     let mut fields: Vec<&(String, f64)> = e.fields.iter().filter(|(_, v)| *v > 0.0).collect();
     fields.sort_by(|a, b| b.1.total_cmp(&a.1));
@@ -714,17 +723,37 @@ fn render_within(e: &diagnose::Estimate, ranked: &[&str]) -> String {
 /// and the diagnosis' significant candidates the maps and parameters take as well.
 fn render_credits(e: &diagnose::Estimate, ranked: &[&str]) -> String {
     let mut o = String::new();
+    if !e.settled {
+        o.push_str(&format!(
+            "  the estimate had not settled after {} evaluations (a step still removed {:.0} or more): what it leaves is provisional, and a cause counts only where the refit with it settles\n",
+            e.objective.len(),
+            e.bar
+        ));
+    }
     match e.set.is_empty() {
         true => o.push_str(&format!("  no library cause adds {:.0} or more beyond it\n", e.bar)),
         false => o.push_str(&format!(
-            "  beyond it, in order (energy each removes beyond it and those before, bar {:.0}; confirmed on the simulator):\n",
+            "  beyond it, in order (energy each removes beyond it and those before, bar {:.0}; confirmed on the simulator; values from the set's refit with the maps from the identified data):\n",
             e.bar
         )),
+    }
+    if !e.dropped.is_empty() {
+        o.push_str(&format!(
+            "  taken and dropped again (a later refit did not need them): {}\n",
+            e.dropped.join(", ")
+        ));
     }
     for c in &e.set {
         let params: Vec<String> = c.params.iter().map(|(n, v, u)| format!("{n} = {} {u}", num(*v))).collect();
         let kind = if c.sensor { "sensor" } else { "physical" };
         o.push_str(&format!("    {:<28} {:>9.0}  {} [{kind}]\n", c.cause, c.value(), params.join(", ")));
+    }
+    for c in &e.provisional {
+        o.push_str(&format!(
+            "  {} ({:.0}) not credited: the refit of the maps with it did not settle\n",
+            c.cause,
+            c.value()
+        ));
     }
     for name in ranked {
         let in_set = e.set.iter().any(|c| c.cause == *name);
@@ -765,9 +794,12 @@ fn kind_name(k: &VerdictKind) -> &'static str {
 /// "unexplained", "noise": {channel: σ},
 /// "proposed_effects": TOML text or null, "empirical", "within_uncertainty": null or
 /// {"fields": [[name, RMS σ]], "params": [[first key, factor]], "channels": [[channel,
-/// energy before, after]], "objective": [..], "credits": [{"cause", "params": [[name,
-/// value, unit]], "linear", "confirmed", "shared", "sensor"}] (each cause on its own),
-/// "set": [as "credits"] (the causes chosen greedily, each beyond those before), "bar"} (`--maps-within-uncertainty`), "setup",
+/// energy before, after]], "objective": [..], "settled", "credits": [{"cause", "params": [[name,
+/// value, unit]], "linear", "confirmed", "fraction", "shared", "sensor"}] (each cause on
+/// its own), "set": [as "credits"] (the forward selection, each beyond the estimate
+/// refitted with those before), "after_set": [per channel], "provisional": [as "credits"] (taken, but the
+/// refit with them did not settle: not credited), "dropped": [cause] (taken, then not
+/// needed by a later refit), "bar"} (`--maps-within-uncertainty`), "setup",
 /// "timing_s"}`. NaN becomes null.
 pub fn to_json(d: &Diagnosed) -> Value {
     let g = &d.diagnosis;

@@ -1,9 +1,9 @@
 //! What each library cause adds beyond the maps and parameters within their uncertainty.
 //!
 //! At the estimate, every cause's parameters are fitted jointly with the fields'
-//! coefficients and the parameter groups (linearised there, the prior kept): its credit
-//! is the penalised energy the joint fit removes beyond what the estimate's own next
-//! step removes. A cause whose signature the maps and parameters reproduce within their
+//! coefficients, the parameter groups and the causes already taken (linearised there,
+//! the prior kept): its credit is the penalised energy the joint fit removes beyond
+//! what the estimate's own next step removes. A cause whose signature the maps and parameters reproduce within their
 //! uncertainty (an inverter rate scale beside the identified rates, a connector
 //! resistance beside the identified one) gets no credit: its `shared` share says that the
 //! two readings cannot be told apart on these runs, rather than that the cause is absent.
@@ -31,6 +31,8 @@ pub struct Credit {
     pub linear: f64,
     /// The same on the simulator; `None` where the linear credit is under the bar.
     pub confirmed: Option<f64>,
+    /// The fraction of the joint step the simulator took (1 where not confirmed).
+    pub fraction: f64,
     /// Largest share of one of its parameters' signature the maps and parameters
     /// reproduce within their uncertainty (1: they can take it entirely).
     pub shared: f64,
@@ -45,167 +47,190 @@ impl Credit {
     }
 }
 
-/// Most causes the greedy selection takes.
-const MAX_SET: usize = 4;
 /// Candidates confirmed on the simulator per selection round, best linear credit first:
 /// the linearisation can misjudge (an axle friction scale beside its map: 2,625
 /// linearised, −318 on the simulator, case 1,007,737).
 const CONFIRMED_PER_ROUND: usize = 3;
 
 /// What the library adds beyond the estimate.
+#[derive(Default)]
 pub(super) struct Credits {
     /// Every cause on its own beside the estimate, highest first.
     pub each: Vec<Credit>,
-    /// The set chosen greedily: each cause credited beyond the estimate and the causes
-    /// before it, refitted jointly with them.
+    /// The forward selection: each cause credited beyond the estimate refitted with the
+    /// causes before it; values from the last refit.
     pub set: Vec<Credit>,
+    /// Per channel, the weighted error energy per fit sample with the set refitted beside
+    /// the maps (empty without a set).
+    pub after_set: Vec<f64>,
+    /// The causes whose refit with the maps did not settle, not credited.
+    pub provisional: Vec<Credit>,
+    /// Causes taken and then dropped: a later refit no longer needed them.
+    pub dropped: Vec<String>,
 }
 
-/// Every library cause's credit at the estimate `at` (the nuisance Jacobian `cols`
-/// there), and the set the credits select; `bar` is the least that counts.
-pub(super) fn credits(pb: &Problem, at: &Point, cols: &[Outputs], bar: f64) -> Result<Credits, String> {
+/// The cause a round takes, and the set with it.
+pub(super) struct Pick {
+    pub credit: Credit,
+    /// The set's library parameters, this cause's among them, at their values.
+    pub free: Vec<(ParamSpec, f64)>,
+}
+
+/// One round at the point `at` of `pb` (the causes `taken` refitted there): with
+/// `each`, every open cause's credit on its own (confirmed where above the bar), and the
+/// best confirmed of the [`CONFIRMED_PER_ROUND`] best linear credits, if above the bar.
+pub(super) fn round(
+    pb: &Problem,
+    at: &Point,
+    taken: &[&str],
+    each: bool,
+) -> Result<(Vec<Credit>, Option<Pick>), String> {
     let specs = library(&pb.o.params);
-    let starts: Vec<f64> = specs.iter().map(|s| current_value(&pb.fx, s)).collect();
+    let fx = pb.effects(&at.x);
+    let starts: Vec<f64> = specs.iter().map(|s| current_value(&fx, s)).collect();
     let steps: Vec<f64> = specs.iter().zip(&starts).map(|(s, &v)| s.step_from(v)).collect();
     let data = Arc::new(pb.data(&at.x));
     let jobs: Vec<usize> = (0..specs.len()).collect();
-    let runs = run_each(&jobs, pb.o, |&i| match pb.p.unread.param(&specs[i]) {
-        true => Ok(Vec::new()),
-        false => {
-            pb.twin.run_data(&data, &with_values(&pb.fx, &[&specs[i]], &[starts[i] + steps[i]]), pb.p.stride)
-        }
-    });
+    let runs =
+        run_each(&jobs, pb.o, |&i| match pb.p.unread.param(&specs[i]) || taken.contains(&specs[i].cause) {
+            true => Ok(Vec::new()),
+            false => {
+                pb.twin.run_data(&data, &with_values(&fx, &[&specs[i]], &[starts[i] + steps[i]]), pb.p.stride)
+            }
+        });
     let effect_cols: Vec<Outputs> =
         runs.into_iter().map(|o| o.map(|out| pb.change(out, &at.y))).collect::<Result<_, _>>()?;
-    let normal = Normal::new(pb, cols, &effect_cols, &at.r, &at.x);
+    let normal = Normal::new(pb, &at.jacobian, &effect_cols, &at.r, &at.x);
     let shared = (0..effect_cols.len()).map(|e| normal.shared(e)).collect();
-    let cx = Context { pb, at, specs: &specs, starts, steps, normal, shared, bar };
+    let cx = Context { pb, at, specs: &specs, starts, steps, normal, shared };
     let causes: Vec<(&'static str, Vec<usize>)> = effect_groups(&specs)
         .into_iter()
-        .filter(|(_, idx)| idx.iter().any(|&e| cx.normal.gee(e, e) != 0.0))
+        .filter(|(c, idx)| !taken.contains(c) && idx.iter().any(|&e| cx.normal.gee(e, e) != 0.0))
         .collect();
-    let alone = cx.normal.solve(&[])?;
-    let mut each: Vec<Credit> =
-        causes.iter().filter_map(|(c, idx)| cx.credit(c, idx, (&[], &alone), true).ok()).collect();
-    each.sort_by(|a, b| b.value().total_cmp(&a.value()));
-    let set = cx.select(&causes)?;
-    Ok(Credits { each, set })
+    let own = cx.normal.solve(&[])?;
+    let mut all: Vec<Credit> = match each {
+        true => causes.iter().filter_map(|(c, idx)| cx.credit(c, idx, &own, true).ok()).collect(),
+        false => Vec::new(),
+    };
+    all.sort_by(|a, b| b.value().total_cmp(&a.value()));
+    let pick = match cx.best_of_round(&causes, &own)? {
+        Some((credit, idx)) => Some(cx.pick(credit, idx)?),
+        None => None,
+    };
+    Ok((all, pick))
 }
 
-/// The fixed parts of the credits.
+/// The set's credits' parameters at the refit's `values` of the library parameters `free`.
+pub(super) fn set_values(set: &mut [Credit], free: &[(ParamSpec, f64)], values: &[f64]) {
+    for c in set {
+        let mine = free.iter().zip(values).filter(|((s, _), _)| s.cause == c.cause);
+        c.params = mine.map(|((s, _), v)| (s.param.to_string(), *v, s.unit.to_string())).collect();
+    }
+}
+
+/// The fixed parts of a round.
 struct Context<'a, 'b> {
     pb: &'a Problem<'b>,
     /// The estimate (its penalised energy is what the own step starts from).
     at: &'a Point,
     specs: &'a [ParamSpec],
+    /// Each library parameter's value at the estimate (the set's refitted).
     starts: Vec<f64>,
     steps: Vec<f64>,
     normal: Normal,
     /// Per effect column, [`Normal::shared`].
     shared: Vec<f64>,
-    bar: f64,
 }
 
 impl Context<'_, '_> {
-    /// The values of effect columns `idx` after `step` (whose effect part follows the
-    /// nuisance's), within their bounds.
-    fn values(&self, idx: &[usize], step: &Step) -> Vec<f64> {
-        let (sp, st) = (self.specs, &self.steps);
-        let d = &step.dx[self.normal.n..];
-        idx.iter()
-            .zip(d)
-            .map(|(&e, d)| (self.starts[e] + st[e] * d).clamp(sp[e].lower, sp[e].upper))
-            .collect()
-    }
-
-    /// Cause `cause` (columns `idx`) beyond the estimate and the causes `selected`, whose
-    /// own step is `base`: linearised, and confirmed on the simulator when `confirm` and
-    /// above the bar.
-    fn credit(
-        &self,
-        cause: &str,
-        idx: &[usize],
-        (selected, base): (&[usize], &Step),
-        confirm: bool,
-    ) -> Result<Credit, String> {
-        let both: Vec<usize> = selected.iter().chain(idx).copied().collect();
-        let joint = self.normal.solve(&both)?;
-        let linear = joint.reduction - base.reduction;
-        let shared = idx.iter().map(|&e| self.shared[e]).fold(0.0, f64::max);
-        let mut values = self.values(&both, &joint);
-        let confirmed = match confirm && linear >= self.bar {
-            true => {
-                let own = (&base.dx[..self.normal.n], selected, &self.values(selected, base)[..]);
-                let (c, a) = self.confirm(own, (&joint.dx[..self.normal.n], &both, &values))?;
-                values
-                    .iter_mut()
-                    .zip(&both)
-                    .for_each(|(v, &e)| *v = self.starts[e] + a * (*v - self.starts[e]));
-                Some(c)
-            }
-            false => None,
-        };
+    /// The estimate moved by `step` times `a`: the unknowns, and the values of effect
+    /// columns `idx` (whose part of the step follows the unknowns'), within their bounds.
+    fn moved(&self, idx: &[usize], step: &Step, a: f64) -> (Vec<f64>, Vec<f64>) {
+        let n = self.normal.n;
+        let x = self.at.x.iter().zip(&step.dx[..n]).map(|(u, d)| u + a * d).collect();
         let sp = self.specs;
-        let mine = both.iter().zip(&values).skip(selected.len());
-        let params = mine.map(|(&e, v)| (sp[e].param.to_string(), *v, sp[e].unit.to_string()));
-        let sensor = idx.iter().all(|&e| sp[e].is_chain());
-        Ok(Credit { cause: cause.to_string(), params: params.collect(), linear, confirmed, shared, sensor })
+        let values = idx.iter().zip(&step.dx[n..]);
+        let values =
+            values.map(|(&e, d)| (self.starts[e] + a * self.steps[e] * d).clamp(sp[e].lower, sp[e].upper));
+        (x, values.collect())
     }
 
-    /// Forward selection: each round, the causes' linear credits beyond the estimate and
-    /// the set so far, the best [`CONFIRMED_PER_ROUND`] confirmed on the simulator, the
-    /// best confirmed one above the bar taken; at most [`MAX_SET`].
-    fn select(&self, causes: &[(&'static str, Vec<usize>)]) -> Result<Vec<Credit>, String> {
-        let (mut set, mut selected): (Vec<Credit>, Vec<usize>) = (Vec::new(), Vec::new());
-        while set.len() < MAX_SET {
-            let base = self.normal.solve(&selected)?;
-            let open = causes.iter().filter(|(c, _)| set.iter().all(|s| s.cause != *c));
-            let mut linear: Vec<(f64, &(&'static str, Vec<usize>))> = open
-                .filter_map(|cause| {
-                    Some((self.credit(cause.0, &cause.1, (&selected, &base), false).ok()?.linear, cause))
-                })
-                .filter(|(l, _)| *l >= self.bar)
-                .collect();
-            linear.sort_by(|a, b| b.0.total_cmp(&a.0));
-            let tried = linear.iter().take(CONFIRMED_PER_ROUND);
-            let confirmed =
-                tried.map(|(_, (c, idx))| self.credit(c, idx, (&selected, &base), true).map(|k| (k, idx)));
-            let mut best: Option<(Credit, &Vec<usize>)> = None;
-            for k in confirmed {
-                let k = k?;
-                if k.0.value() >= self.bar && best.as_ref().is_none_or(|b| k.0.value() > b.0.value()) {
-                    best = Some(k);
-                }
-            }
-            let Some((credit, idx)) = best else { break };
-            selected.extend(idx);
-            set.push(credit);
-        }
-        Ok(set)
-    }
-
-    /// The simulator's credit and the fraction of the joint step it takes: the `own`
-    /// step (nuisance change, effect columns, their values) and the `joint` one from the
-    /// estimate, each simulated at the [`FRACTIONS`] until the energy stops falling; the
-    /// own step counts only where it does not raise the energy.
-    fn confirm(
-        &self,
-        own: (&[f64], &[usize], &[f64]),
-        joint: (&[f64], &[usize], &[f64]),
-    ) -> Result<(f64, f64), String> {
+    /// The penalised energy at `x` with the effect columns `idx` at `values`.
+    fn energy(&self, x: &[f64], idx: &[usize], values: &[f64]) -> Result<f64, String> {
         let pb = self.pb;
-        let energy = |a: f64, (dx, idx, values): (&[f64], &[usize], &[f64])| -> Result<f64, String> {
-            let xs: Vec<f64> = self.at.x.iter().zip(dx).map(|(u, d)| u + a * d).collect();
-            let sp: Vec<&ParamSpec> = idx.iter().map(|&e| &self.specs[e]).collect();
-            let v: Vec<f64> =
-                idx.iter().zip(values).map(|(&e, v)| self.starts[e] + a * (v - self.starts[e])).collect();
-            let y = pb.outputs_with(&Arc::new(pb.data(&xs)), with_values(&pb.fx, &sp, &v))?;
-            Ok(pb.objective(&pb.residual(&y), &xs))
+        let sp: Vec<&ParamSpec> = idx.iter().map(|&e| &self.specs[e]).collect();
+        let y = pb.outputs_with(&Arc::new(pb.data(x)), with_values(&pb.effects(x), &sp, values))?;
+        Ok(pb.objective(&pb.residual(&y), x))
+    }
+
+    /// Cause `cause` (columns `idx`) beyond the estimate, whose own step is `own`:
+    /// linearised, and confirmed on the simulator when `confirm` and above the bar.
+    fn credit(&self, cause: &str, idx: &[usize], own: &Step, confirm: bool) -> Result<Credit, String> {
+        let joint = self.normal.solve(idx)?;
+        let linear = joint.reduction - own.reduction;
+        let shared = idx.iter().map(|&e| self.shared[e]).fold(0.0, f64::max);
+        let (confirmed, fraction) = match confirm && linear >= self.pb.bar {
+            true => self.confirm(own, (idx, &joint)).map(|(c, a)| (Some(c), a))?,
+            false => (None, 1.0),
         };
-        let shortest = |step| -> Result<(f64, f64), String> {
+        let values = self.moved(idx, &joint, fraction).1;
+        let sp = self.specs;
+        let params =
+            idx.iter().zip(&values).map(|(&e, v)| (sp[e].param.to_string(), *v, sp[e].unit.to_string()));
+        let sensor = idx.iter().all(|&e| sp[e].is_chain());
+        Ok(Credit {
+            cause: cause.to_string(),
+            params: params.collect(),
+            linear,
+            confirmed,
+            fraction,
+            shared,
+            sensor,
+        })
+    }
+
+    /// The best confirmed cause above the bar among the [`CONFIRMED_PER_ROUND`] best
+    /// linear credits beyond the estimate.
+    fn best_of_round<'c>(
+        &self,
+        causes: &'c [(&'static str, Vec<usize>)],
+        own: &Step,
+    ) -> Result<Option<(Credit, &'c [usize])>, String> {
+        let linear =
+            causes.iter().filter_map(|(c, idx)| Some((self.credit(c, idx, own, false).ok()?.linear, c, idx)));
+        let mut linear: Vec<_> = linear.filter(|(l, _, _)| *l >= self.pb.bar).collect();
+        linear.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let mut best: Option<(Credit, &[usize])> = None;
+        for (_, c, idx) in linear.into_iter().take(CONFIRMED_PER_ROUND) {
+            let k = self.credit(c, idx, own, true)?;
+            if k.value() >= self.pb.bar && best.as_ref().is_none_or(|b| k.value() > b.0.value()) {
+                best = Some((k, idx));
+            }
+        }
+        Ok(best)
+    }
+
+    /// The set once `credit` (columns `idx`) is taken: the set's parameters at their
+    /// values here, the cause's at the fraction of the joint step the simulator took.
+    fn pick(&self, credit: Credit, idx: &[usize]) -> Result<Pick, String> {
+        let joint = self.normal.solve(idx)?;
+        let (x, values) = self.moved(idx, &joint, credit.fraction);
+        let pb = self.pb;
+        let held = pb.free.iter().map(|(s, _)| s.clone()).zip(pb.values(&x));
+        let free = held.chain(idx.iter().map(|&e| self.specs[e].clone()).zip(values)).collect();
+        Ok(Pick { credit, free })
+    }
+
+    /// The simulator's credit of the `joint` step (columns and step) beyond the own
+    /// step, and the fraction of the joint step it takes: each simulated at the
+    /// [`FRACTIONS`] until the energy stops falling; the own step counts only where it
+    /// does not raise the energy.
+    fn confirm(&self, own: &Step, (idx, joint): (&[usize], &Step)) -> Result<(f64, f64), String> {
+        let shortest = |idx: &[usize], step: &Step| -> Result<(f64, f64), String> {
             let mut best = (f64::INFINITY, 1.0);
             for a in FRACTIONS {
-                let e = energy(a, step)?;
+                let (x, values) = self.moved(idx, step, a);
+                let e = self.energy(&x, idx, &values)?;
                 if e > best.0 {
                     break;
                 }
@@ -213,8 +238,8 @@ impl Context<'_, '_> {
             }
             Ok(best)
         };
-        let (with, a) = shortest(joint)?;
-        Ok((self.at.energy.min(shortest(own)?.0) - with, a))
+        let (with, a) = shortest(idx, joint)?;
+        Ok((self.at.energy.min(shortest(&[], own)?.0) - with, a))
     }
 }
 
@@ -244,13 +269,15 @@ struct Step {
 }
 
 impl Normal {
+    /// The normal equations with the nuisance's Gram `gram` (prior included) of columns
+    /// `cols`, the effects' columns `effects`, at residual `r` and nuisance `x`.
     fn new(pb: &Problem, cols: &[Outputs], effects: &[Outputs], r: &Outputs, x: &[f64]) -> Self {
         use rayon::prelude::*;
-        let (gnn, bn) = pb.normal(cols, r, x);
+        let bn = pb.gradient(cols, r, x);
         let gne = effects.par_iter().map(|e| cols.iter().map(|c| pb.dot(e, c)).collect()).collect();
         let gee = effects.par_iter().map(|e| effects.iter().map(|f| pb.dot(e, f)).collect()).collect();
         let be = effects.par_iter().map(|e| pb.dot(e, r)).collect();
-        Self { n: cols.len(), gnn, bn, gne, gee, be }
+        Self { n: cols.len(), gnn: pb.gram(cols), bn, gne, gee, be }
     }
 
     fn gee(&self, e: usize, f: usize) -> f64 {
