@@ -81,8 +81,9 @@ How the diagnosis works:
   (confirmed on the simulator); the best is taken and the maps estimated again from the
   identified data with it, until no cause adds more (at most four). A significant
   candidate the maps take as well is reported as such: the runs cannot tell the two
-  readings apart. An estimate that has not settled credits nothing. It is no verdict
-  yet; --write-estimate DIR writes the estimate (labelled ESTIMATED) for --data-dir.
+  readings apart. A cause counts only where the refit with it settles (otherwise it is
+  reported as provisional). It is no verdict yet; --write-estimate DIR writes the
+  estimate (labelled ESTIMATED) for --data-dir.
   Files with gaps are refused: cut the run at the gap.
   Several runs are a campaign: the twin runs on each with the same effects and every fit is
   joint, so two effects confounded on one run are told apart when another run separates

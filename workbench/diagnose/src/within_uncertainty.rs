@@ -215,7 +215,9 @@ impl<'a> Problem<'a> {
         let n = self.unknowns.len();
         let values = self.values(&at.x);
         let mut least: Option<(f64, &str)> = None;
-        for cause in self.free.iter().map(|(s, _)| s.cause) {
+        let mut causes: Vec<&str> = self.free.iter().map(|(s, _)| s.cause).collect();
+        causes.dedup();
+        for cause in causes {
             let k: Vec<usize> = (0..self.free.len()).filter(|&j| self.free[j].0.cause == cause).collect();
             let pos: Vec<usize> = k.iter().map(|&j| n - self.free.len() + j).collect();
             let cols = pos.iter().map(|&i| {
@@ -228,7 +230,8 @@ impl<'a> Problem<'a> {
                 .iter()
                 .map(|&j| (values[j] - current_value(&self.fx, &self.free[j].0)) / self.free[j].0.delta)
                 .collect();
-            let w = solve_spd(&sigma, &u, 1e-12).ok_or("the set's covariance is singular")?;
+            // Σ is a block of an SPD inverse: should its solve fail numerically, the member stays.
+            let Some(w) = solve_spd(&sigma, &u, 1e-12) else { continue };
             let cost: f64 = u.iter().zip(&w).map(|(a, b)| a * b).sum();
             if least.is_none_or(|(c, _)| cost < c) {
                 least = Some((cost, cause));
