@@ -68,8 +68,9 @@ pub struct Estimate {
     pub settled: bool,
     /// Every library cause on its own beside the estimate, highest credit first.
     pub credits: Vec<Credit>,
-    /// The causes that add beyond the estimate, chosen greedily: each credited beyond
-    /// the estimate and the causes before it.
+    /// The causes that add beyond the estimate (forward selection): each credited
+    /// beyond the estimate refitted with the causes before it; values from the last
+    /// refit of the set with the maps.
     pub set: Vec<Credit>,
     /// Per channel, the weighted error energy per fit sample with the set refitted beside
     /// the maps (empty without a set).
@@ -129,12 +130,7 @@ struct Problem<'a> {
 type Outputs = Vec<Vec<f64>>;
 
 impl<'a> Problem<'a> {
-    fn new(
-        twin: &'a dyn Twin,
-        p: &'a Prepared,
-        o: &'a Options,
-        (fx, free): (Effects, Vec<(ParamSpec, f64)>),
-    ) -> Result<Self, String> {
+    fn new(twin: &'a dyn Twin, p: &'a Prepared, o: &'a Options, fx: Effects) -> Result<Self, String> {
         let base = twin.data().ok_or("this twin runs on its own data only")?;
         let unc = Uncertainty::thesis();
         let fields = fields(&base, &unc);
@@ -145,7 +141,6 @@ impl<'a> Problem<'a> {
         let unknowns: Vec<Unknown> = coefs
             .map(|(field, j)| Unknown::Coef { field, j })
             .chain((0..unc.params.len()).map(Unknown::Group))
-            .chain((0..free.len()).map(Unknown::Effect))
             .collect();
         let every = p.idx.len().div_ceil(ROWS).max(1);
         let rows: Vec<usize> = p.idx.iter().copied().step_by(every).collect();
@@ -162,10 +157,27 @@ impl<'a> Problem<'a> {
             unknowns,
             rows,
             w,
-            free,
+            free: Vec::new(),
             prior: 1.0 / every as f64,
             bar,
         })
+    }
+
+    /// The same runs, prior and rows with the library parameters `free` refitted beside
+    /// the fields and groups (their unknowns follow the nuisance's).
+    fn with_free(&self, free: Vec<(ParamSpec, f64)>) -> Self {
+        let nuisance = self.unknowns.iter().filter(|u| !matches!(u, Unknown::Effect(_))).copied();
+        let unknowns = nuisance.chain((0..free.len()).map(Unknown::Effect)).collect();
+        Self {
+            base: Arc::clone(&self.base),
+            unc: self.unc.clone(),
+            fields: self.fields.clone(),
+            unknowns,
+            rows: self.rows.clone(),
+            w: self.w.clone(),
+            free,
+            ..*self
+        }
     }
 
     /// The model data at `x` (one value per unknown).
@@ -221,7 +233,8 @@ impl<'a> Problem<'a> {
             let k: Vec<usize> = (0..self.free.len()).filter(|&j| self.free[j].0.cause == cause).collect();
             let pos: Vec<usize> = k.iter().map(|&j| n - self.free.len() + j).collect();
             let cols = pos.iter().map(|&i| {
-                let e: Vec<f64> = (0..n).map(|r| f64::from(u8::from(r == i))).collect();
+                let mut e = vec![0.0; n];
+                e[i] = 1.0;
                 solve_spd(&g, &e, 1e-12).ok_or("the set's normal equations are singular")
             });
             let cols: Vec<Vec<f64>> = cols.collect::<Result<_, _>>()?;
@@ -375,7 +388,7 @@ pub fn estimate_within_uncertainty(
 /// estimate the refit stays at 37 ms, penalised energy 72,139; from the identified data it
 /// reaches 124 ms, 40,756, and no rate scale is credited after it).
 pub(super) fn estimate(twin: &dyn Twin, p: &Prepared, o: &Options, fx: Effects) -> Result<Estimate, String> {
-    let pb = Problem::new(twin, p, o, (fx, Vec::new()))?;
+    let pb = Problem::new(twin, p, o, fx)?;
     let fit = pb.fit(vec![0.0; pb.unknowns.len()])?;
     let (each, pick) = credit::round(&pb, &fit.best, &[], true)?;
     let mut credits = credit::Credits { each, ..Default::default() };
@@ -399,7 +412,7 @@ fn select(pb: &Problem, mut pick: Option<credit::Pick>, credits: &mut credit::Cr
         credits.set.push(next.credit);
         let mut free = next.free;
         loop {
-            let stage = Problem::new(pb.twin, pb.p, pb.o, (pb.fx, free))?;
+            let stage = pb.with_free(free);
             let refit = stage.fit(vec![0.0; stage.unknowns.len()])?;
             let values = stage.values(&refit.best.x);
             credit::set_values(&mut credits.set, &stage.free, &values);

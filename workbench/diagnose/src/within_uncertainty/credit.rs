@@ -124,8 +124,13 @@ pub(super) fn round(
 pub(super) fn set_values(set: &mut [Credit], free: &[(ParamSpec, f64)], values: &[f64]) {
     for c in set {
         let mine = free.iter().zip(values).filter(|((s, _), _)| s.cause == c.cause);
-        c.params = mine.map(|((s, _), v)| (s.param.to_string(), *v, s.unit.to_string())).collect();
+        c.params = mine.map(|((s, _), v)| param_line(s, *v)).collect();
     }
+}
+
+/// A parameter as a credit reports it: name, value, unit.
+fn param_line(s: &ParamSpec, v: f64) -> (String, f64, String) {
+    (s.param.to_string(), v, s.unit.to_string())
 }
 
 /// The fixed parts of a round.
@@ -175,8 +180,7 @@ impl Context<'_, '_> {
         };
         let values = self.moved(idx, &joint, fraction).1;
         let sp = self.specs;
-        let params =
-            idx.iter().zip(&values).map(|(&e, v)| (sp[e].param.to_string(), *v, sp[e].unit.to_string()));
+        let params = idx.iter().zip(&values).map(|(&e, v)| param_line(&sp[e], *v));
         let sensor = idx.iter().all(|&e| sp[e].is_chain());
         Ok(Credit {
             cause: cause.to_string(),
