@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! cargo build --release -p workbench --bin simrod
-//! cargo run --release -p workbench --example blind_loop -- [--cases N] [--first SEED] [--jobs J] [--check] [--keep DIR] [--sensor-noise default|FILE]
+//! cargo run --release -p workbench --example blind_loop -- [--cases N] [--first SEED] [--jobs J] [--check] [--keep DIR] [--sensor-noise default|FILE] [--maps-within-uncertainty]
 //! cargo run --release -p workbench --example blind_loop -- --replay DIR [--cases N] [--first SEED]
 //! ```
 //!
@@ -15,7 +15,10 @@
 //! F --write-data D`, then `diagnose --effects F --data-dir D` with what it wrote (an
 //! effect file, and an empirically corrected data directory when the library leaves
 //! error), up to five rounds, stopping at "nothing missing" or when nothing new is
-//! written. Then, per run and channel:
+//! written. With `--maps-within-uncertainty` round 1 also estimates the maps within their
+//! stated uncertainty (`--write-estimate`), and the loop goes on from what that wrote (the
+//! maps refitted with the credited set, and the set's effect file) in place of round 1's
+//! proposal. Then, per run and channel:
 //!
 //! - the **floor**: the error of the true plant model on the file (the noise-free run of
 //!   the same bench, `--noise none`, against the file);
@@ -98,6 +101,9 @@ struct Case {
     replay: bool,
     /// `--sensor-noise` for every diagnosis (absolute, or `default`).
     sensor_noise: Option<PathBuf>,
+    /// Round 1 estimates the maps within their stated uncertainty and the loop goes on
+    /// from the estimate (`--maps-within-uncertainty`).
+    within: bool,
 }
 
 /// What happened to one case.
@@ -296,6 +302,11 @@ struct Options {
     /// bench's (the noise its runs have), or a noise file.
     #[arg(long, value_name = "default|FILE")]
     sensor_noise: Option<PathBuf>,
+    /// Round 1 also estimates the maps within their stated uncertainty
+    /// (`diagnose --maps-within-uncertainty --write-estimate`); the loop goes on from the
+    /// estimate refitted with its credited set (its data directory and effect file).
+    #[arg(long)]
+    maps_within_uncertainty: bool,
 }
 
 fn simrod(dir: &Path, args: &[String]) -> Result<String, String> {
@@ -314,7 +325,13 @@ fn strings(v: &[&str]) -> Vec<String> {
 
 /// The runs of case `seed`: the scenario's own, then for a campaign 1–4 more of the
 /// same bench on other profiles and scales; each with its noise-free twin.
-fn make_case(dir: &Path, seed: u64, replay: bool, sensor_noise: Option<&Path>) -> Result<Case, String> {
+fn make_case(
+    dir: &Path,
+    seed: u64,
+    replay: bool,
+    sensor_noise: Option<&Path>,
+    within: bool,
+) -> Result<Case, String> {
     let scenario = Scenario::draw(seed);
     let mut r = Rng::new(seed, 7);
     let extra = if r.uniform() < 0.4 { 1 + r.index(4) } else { 0 };
@@ -363,7 +380,8 @@ fn make_case(dir: &Path, seed: u64, replay: bool, sensor_noise: Option<&Path>) -
         exact.push(dir.join(ex));
         clean.push(dir.join(cl));
     }
-    Ok(Case { seed, scenario, runs, exact, clean, replay, sensor_noise: sensor_noise.map(Path::to_path_buf) })
+    let sensor_noise = sensor_noise.map(Path::to_path_buf);
+    Ok(Case { seed, scenario, runs, exact, clean, replay, sensor_noise, within })
 }
 
 /// `simrod bench` of `s`'s test (profile and scales), noise-free, nothing hidden yet.
@@ -444,6 +462,8 @@ fn moves_of(truth: &toml::Value, id: &str) -> Vec<String> {
 struct Added {
     effects: Option<String>,
     data: Option<String>,
+    /// `data` is the estimate within the stated uncertainty, not an empirical table.
+    estimated: bool,
 }
 
 impl Added {
@@ -528,11 +548,15 @@ fn blind_loop(dir: &Path, c: &Case) -> Result<Rounds, String> {
     let (mut rounds, mut added): (Vec<Value>, Added) = (Vec::new(), Added::default());
     let mut on_table = Vec::new();
     for k in 1..=ROUNDS {
-        on_table.push(added.data.is_some());
-        let (out, data) = (format!("r{k}.toml"), format!("d{k}"));
+        on_table.push(added.data.is_some() && !added.estimated);
+        let (out, data, est) = (format!("r{k}.toml"), format!("d{k}"), format!("e{k}"));
         let mut a = strings(&["diagnose"]);
         a.extend(runs.iter().cloned());
         a.extend(strings(&["--json", "--write-effects", &out, "--write-data", &data]));
+        let within = c.within && k == 1;
+        if within {
+            a.extend(strings(&["--maps-within-uncertainty", "--write-estimate", &est]));
+        }
         a.extend(added.flags());
         if let Some(f) = &c.sensor_noise {
             a.extend(["--sensor-noise".to_string(), f.display().to_string()]);
@@ -551,7 +575,13 @@ fn blind_loop(dir: &Path, c: &Case) -> Result<Rounds, String> {
         if !c.replay {
             let _ = std::fs::write(&kept, j.to_string());
         }
+        let estimated = j.get("estimate_written").is_some();
         rounds.push(j);
+        if within && estimated {
+            // The verdict read the identified maps; the loop goes on from the estimate.
+            added = Added { effects: Some(format!("{est}/effects.toml")), data: Some(est), estimated: true };
+            continue;
+        }
         if kind == "nothing_missing" || !(wrote_fx || wrote_data) {
             break;
         }
@@ -567,6 +597,7 @@ fn blind_loop(dir: &Path, c: &Case) -> Result<Rounds, String> {
         }
         if wrote_data {
             added.data = Some(data);
+            added.estimated = false;
         }
     }
     Ok(Rounds { json: rounds, on_table, added })
@@ -854,6 +885,7 @@ fn pct(a: usize, b: usize) -> String {
 fn main() {
     let o = <Options as clap::Parser>::parse();
     let (n, first, jobs, check) = (o.cases, o.first, o.jobs as usize, o.check);
+    let within = o.maps_within_uncertainty;
     let replay = o.replay;
     let keep = replay.clone().or(o.keep);
     // The diagnoses run in each case's directory: a file named relative to here is made absolute.
@@ -877,7 +909,7 @@ fn main() {
                 if seed >= first + n {
                     break;
                 }
-                let (text, o) = one_case(seed, keep, replay, stated);
+                let (text, o) = one_case(seed, keep, replay, stated, within);
                 if tx.send((seed, text, o)).is_err() {
                     break;
                 }
@@ -904,6 +936,7 @@ fn one_case(
     keep: Option<&Path>,
     replay: bool,
     stated: Option<&Path>,
+    within: bool,
 ) -> (String, Option<Outcome>) {
     let dir = match keep {
         Some(k) => {
@@ -918,7 +951,7 @@ fn one_case(
             Err(e) => return (format!("{seed:>9} no temporary directory: {e}\n"), None),
         },
     };
-    let case = match make_case(dir.path(), seed, replay, stated) {
+    let case = match make_case(dir.path(), seed, replay, stated, within) {
         Ok(c) => c,
         Err(e) => return (format!("{seed:>9} the bench refused the case: {e}\n"), None),
     };

@@ -83,7 +83,9 @@ How the diagnosis works:
   candidate the maps take as well is reported as such: the runs cannot tell the two
   readings apart. A cause counts only where the refit with it settles (otherwise it is
   reported as provisional). It is no verdict yet; --write-estimate DIR writes the
-  estimate (labelled ESTIMATED) for --data-dir.
+  estimate, refitted with the credited set when one stands (changed tables labelled
+  ESTIMATED), for --data-dir, and DIR/effects.toml, the current effects with the set's
+  values, for --effects.
   Files with gaps are refused: cut the run at the gap.
   Several runs are a campaign: the twin runs on each with the same effects and every fit is
   joint, so two effects confounded on one run are told apart when another run separates
@@ -132,7 +134,9 @@ pub struct DiagnoseArgs {
     pub maps_within_uncertainty: bool,
 
     /// Write the estimate of --maps-within-uncertainty as a model data directory (the
-    /// changed tables labelled ESTIMATED), for `--data-dir`. Never an input's directory.
+    /// changed tables labelled ESTIMATED; refitted with the credited set when one
+    /// stands), for `--data-dir`, and `DIR/effects.toml`, the current effects with the
+    /// set's values, for `--effects`. Never an input's directory.
     #[arg(long, value_name = "DIR", requires = "maps_within_uncertainty")]
     pub write_estimate: Option<PathBuf>,
 
@@ -716,7 +720,7 @@ fn render_within(e: &diagnose::Estimate, ranked: &[&str]) -> String {
         )),
     }
     o.push_str(&render_credits(e, ranked));
-    o.push_str("  write it with --write-estimate DIR and run the twin with --data-dir DIR\n");
+    o.push_str("  write it with --write-estimate DIR and run the twin with --data-dir DIR --effects DIR/effects.toml\n");
     o
 }
 
@@ -907,17 +911,25 @@ pub fn write_correction(d: &Diagnosed, dir: &Path) -> Result<Result<(), String>,
     }
 }
 
-/// Write the estimate within the stated uncertainty to `dir`.
+/// The effect file `--write-estimate DIR` writes beside the data.
+pub const ESTIMATE_EFFECTS: &str = "effects.toml";
+
+/// Write the estimate within the stated uncertainty to `dir`: the model data refitted
+/// with the credited set when one stands (else the estimate alone), and beside it
+/// [`ESTIMATE_EFFECTS`], the current effects with the set's values, so that the two
+/// files together are the model the report's last column describes.
 pub fn write_estimate(d: &Diagnosed, dir: &Path) -> Result<Result<(), String>, CmdError> {
-    match &d.within {
-        Some(e) => {
-            e.data
-                .write(dir)
-                .map_err(|e| CmdError::Runtime(format!("--write-estimate {}: {e}", dir.display())))?;
-            Ok(Ok(()))
-        }
-        None => Ok(Err("no estimate was made (--maps-within-uncertainty)".into())),
-    }
+    let Some(e) = &d.within else {
+        return Ok(Err("no estimate was made (--maps-within-uncertainty)".into()));
+    };
+    let (data, fx) = match &e.with_set {
+        Some((data, fx)) => (data, *fx),
+        None => (&e.data, d.setup.base),
+    };
+    let err = |e: String| CmdError::Runtime(format!("--write-estimate {}: {e}", dir.display()));
+    data.write(dir).map_err(|e| err(e.to_string()))?;
+    write_effects(&fx, &dir.join(ESTIMATE_EFFECTS)).map_err(|e| err(e.to_string()))?;
+    Ok(Ok(()))
 }
 
 /// `simrod diagnose`.
@@ -952,7 +964,14 @@ pub fn execute(args: &DiagnoseArgs) -> Result<(), CmdError> {
         (p, w, ok)
     });
     let estimate_msg = estimate_written.map(|(p, w)| {
-        let ok = format!("wrote the estimated model data to {} (use it with --data-dir)", p.display());
+        let fx = p.join(ESTIMATE_EFFECTS);
+        let ok = format!(
+            "wrote the estimated model data to {} and its effects to {} (use them with --data-dir {} --effects {})",
+            p.display(),
+            fx.display(),
+            p.display(),
+            fx.display()
+        );
         (p, w, ok)
     });
     let fx_msg = written.map(|(p, w)| {

@@ -1003,13 +1003,15 @@ fn credited(j: &Value) -> Vec<String> {
     set.iter().map(|c| c["cause"].as_str().unwrap().to_owned()).collect()
 }
 
-/// `diagnose --maps-within-uncertainty --json` on a TP07 bench run with `effects` (TOML
-/// text) hidden beside maps perturbed with seed `seeds[0]`, noise seed `seeds[1]`.
+/// `diagnose --maps-within-uncertainty --json --write-estimate est` on a TP07 bench run
+/// (`m.csv`, its noise-free twin `m0.csv`) with `effects` (TOML text) hidden beside maps
+/// perturbed with seed `seeds[0]`, noise seed `seeds[1]`.
 fn beside_perturbed_maps(p: &Path, effects: &str, seeds: [&str; 2]) -> Value {
     std::fs::write(p.join("hidden.toml"), effects).unwrap();
-    let a = ["bench", "--profile", "TP07", "--perturb-maps", seeds[0], "--effects", "hidden.toml"];
-    ok(&simrod(p, &[&a[..], &["--seed", seeds[1], "-q", "--out", "m.csv"]].concat()));
-    let diagnose = ["diagnose", "m.csv", "--json", "--maps-within-uncertainty"];
+    let a = ["bench", "--profile", "TP07", "--perturb-maps", seeds[0], "--effects", "hidden.toml", "-q"];
+    ok(&simrod(p, &[&a[..], &["--seed", seeds[1], "--out", "m.csv"]].concat()));
+    ok(&simrod(p, &[&a[..], &["--noise", "none", "--out", "m0.csv"]].concat()));
+    let diagnose = ["diagnose", "m.csv", "--json", "--maps-within-uncertainty", "--write-estimate", "est"];
     serde_json::from_str(&ok(&simrod(p, &diagnose))).unwrap()
 }
 
@@ -1058,6 +1060,21 @@ fn a_controller_delay_beside_perturbed_maps_is_refitted_with_them() {
     for (ch, e) in names.zip(after) {
         if ["SuTMotorEnc", "SiemensEnc"].contains(&ch) {
             assert!(e <= 1.44, "{ch}: {e} of the noise's energy with the delay refitted");
+        }
+    }
+    // What --write-estimate wrote is that refit: its effect file holds the delay at the
+    // refitted value, and the twin run by `compare` on the two files brings the speeds
+    // the delay moves within 1.2x the true plant model's error.
+    let written: toml::Value = std::fs::read_to_string(p.join("est/effects.toml")).unwrap().parse().unwrap();
+    let in_file = written["controller_delay"]["delay_s"].as_float().unwrap();
+    assert!((in_file - delay).abs() <= 1e-6 * delay, "written delay {in_file} s, refitted {delay} s");
+    let a =
+        ["compare", "m.csv", "--no-history", "--json", "--data-dir", "est", "--effects", "est/effects.toml"];
+    let c: Value = serde_json::from_str(&ok(&simrod(p, &a))).unwrap();
+    for (ch, floor) in floors(&p.join("m.csv"), &p.join("m0.csv")) {
+        if ["SuTMotorEnc", "SiemensEnc"].contains(&ch.as_str()) {
+            let e = c["channels"][&ch]["rmse"].as_f64().unwrap();
+            assert!(e <= 1.2 * floor, "{ch}: {e} with the estimate's files, floor {floor}");
         }
     }
 }

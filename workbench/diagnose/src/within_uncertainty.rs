@@ -86,6 +86,10 @@ pub struct Estimate {
     /// The estimated model data.
     #[serde(skip)]
     pub data: Arc<ModelData>,
+    /// The model with the set: the maps and parameters refitted beside
+    /// [`Estimate::set`] and the effects with the set's values (`None` without a set).
+    #[serde(skip)]
+    pub with_set: Option<(Arc<ModelData>, Effects)>,
 }
 
 impl Estimate {
@@ -406,7 +410,7 @@ pub(super) fn estimate(twin: &dyn Twin, p: &Prepared, o: &Options, fx: Effects) 
 /// nothing; one that settles once the cause is beside it credits the cause).
 fn select(pb: &Problem, mut pick: Option<credit::Pick>, credits: &mut credit::Credits) -> Result<(), String> {
     let mut taken = Vec::<String>::new();
-    let mut settled = (Vec::new(), Vec::new());
+    let mut settled = (Vec::new(), Vec::new(), None);
     while let Some(next) = pick.take().filter(|_| taken.len() < MAX_SET) {
         taken.push(next.credit.cause.clone());
         credits.set.push(next.credit);
@@ -421,11 +425,13 @@ fn select(pb: &Problem, mut pick: Option<credit::Pick>, credits: &mut credit::Cr
                 credits.provisional =
                     all.into_iter().filter(|c| credits.set.iter().all(|k| k.cause != c.cause)).collect();
                 credits.after_set = settled.1;
+                credits.with_set = settled.2;
                 return Ok(());
             }
             credits.after_set = stage.energies(&refit.best.r);
             let Some(cause) = stage.redundant(&refit.best)? else {
-                settled = (credits.set.clone(), credits.after_set.clone());
+                credits.with_set = Some((stage.data(&refit.best.x), stage.effects(&refit.best.x)));
+                settled = (credits.set.clone(), credits.after_set.clone(), credits.with_set.clone());
                 let taken: Vec<&str> = taken.iter().map(String::as_str).collect();
                 pick = credit::round(&stage, &refit.best, &taken, false)?.1;
                 break;
@@ -436,6 +442,7 @@ fn select(pb: &Problem, mut pick: Option<credit::Pick>, credits: &mut credit::Cr
             free = kept.map(|((s, _), v)| (s.clone(), v)).collect();
             if free.is_empty() {
                 credits.after_set.clear();
+                credits.with_set = None;
                 return Ok(());
             }
         }
@@ -537,6 +544,7 @@ fn summarise(pb: &Problem, fit: &Fit, credits: credit::Credits) -> Estimate {
         dropped: credits.dropped,
         bar: pb.bar,
         data: Arc::new(labelled(&pb.base, pb.data(&fit.best.x))),
+        with_set: credits.with_set.map(|(d, fx)| (Arc::new(labelled(&pb.base, d)), fx)),
     }
 }
 

@@ -67,6 +67,8 @@ pub(super) struct Credits {
     pub provisional: Vec<Credit>,
     /// Causes taken and then dropped: a later refit no longer needed them.
     pub dropped: Vec<String>,
+    /// The model at the last settled refit of the set: its data and effects.
+    pub with_set: Option<(simrod_io::datadir::ModelData, model_core::Effects)>,
 }
 
 /// The cause a round takes, and the set with it.
