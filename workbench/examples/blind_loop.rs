@@ -126,6 +126,8 @@ struct Outcome {
     library: Vec<Library>,
     /// Coverage of the truth by the 95 % interval: (inside, total).
     coverage: (usize, usize),
+    /// Effects found with no interval stated for them (not in [`Outcome::coverage`]).
+    unstated: usize,
     rounds: usize,
     /// The loop ended with an empirically corrected data directory.
     empirical: bool,
@@ -539,6 +541,9 @@ struct Rounds {
     /// Per round: whether its model ran on an empirically corrected data directory.
     on_table: Vec<bool>,
     added: Added,
+    /// The first round whose proposal the loop could use: 1 when round 1's estimate
+    /// replaced its proposal (`--maps-within-uncertainty`), else 0.
+    proposals_from: usize,
 }
 
 /// The loop: diagnose, add what it wrote (an effect file, an empirically corrected data
@@ -546,7 +551,7 @@ struct Rounds {
 fn blind_loop(dir: &Path, c: &Case) -> Result<Rounds, String> {
     let runs: Vec<String> = c.runs.iter().map(|p| p.display().to_string()).collect();
     let (mut rounds, mut added): (Vec<Value>, Added) = (Vec::new(), Added::default());
-    let mut on_table = Vec::new();
+    let (mut on_table, mut proposals_from) = (Vec::new(), 0);
     for k in 1..=ROUNDS {
         on_table.push(added.data.is_some() && !added.estimated);
         let (out, data, est) = (format!("r{k}.toml"), format!("d{k}"), format!("e{k}"));
@@ -580,6 +585,7 @@ fn blind_loop(dir: &Path, c: &Case) -> Result<Rounds, String> {
         if within && estimated {
             // The verdict read the identified maps; the loop goes on from the estimate.
             added = Added { effects: Some(format!("{est}/effects.toml")), data: Some(est), estimated: true };
+            proposals_from = 1;
             continue;
         }
         if kind == "nothing_missing" || !(wrote_fx || wrote_data) {
@@ -600,7 +606,7 @@ fn blind_loop(dir: &Path, c: &Case) -> Result<Rounds, String> {
             added.estimated = false;
         }
     }
-    Ok(Rounds { json: rounds, on_table, added })
+    Ok(Rounds { json: rounds, on_table, added, proposals_from })
 }
 
 /// The effects of `claims` first written in a round that ran on an empirically
@@ -775,7 +781,7 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         }
     };
     let (false_claim, false_claim_strict) = (unjustified(&truth), unjustified(&hidden));
-    let mut coverage = (0, 0);
+    let (mut coverage, mut unstated) = ((0, 0), 0);
     let mut missed = Vec::new();
     let excited = excited_ids(&truth_toml);
     let maps_error = MapsError::of(dir, c)?;
@@ -795,13 +801,18 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         if let Some(u) = &unfound {
             let against = beside.map(|r| format!("{r:.2}x the maps' error; ")).unwrap_or_default();
             missed.push(format!("{id} not found ({against}{}: {})", u.why.label(), u.detail));
-        } else if let Some((lo, hi)) = stated_interval(rounds, &key, param) {
+        } else if let Some((lo, hi)) = stated_interval(&rounds[loop_.proposals_from..], &key, param)
+            .or_else(|| estimate_interval(&rounds[..loop_.proposals_from], &key, param))
+        {
             let inside = lo <= *value && *value <= hi;
             coverage.0 += usize::from(inside);
             coverage.1 += 1;
             if !inside {
                 missed.push(format!("{id}.{param} = {value:.4} outside [{lo:.4}, {hi:.4}]"));
             }
+        } else {
+            unstated += 1;
+            missed.push(format!("{id}.{param} found with no interval stated"));
         }
         let (why, removes) = unfound.map_or((None, None), |u| (Some(u.why), u.removes));
         library.push(Library { found, against_maps: beside, why, removes });
@@ -819,8 +830,9 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         false_claim_strict,
         library,
         coverage,
+        unstated,
         rounds: rounds.len(),
-        empirical: added.data.is_some(),
+        empirical: added.data.is_some() && !added.estimated,
         last: last_j["verdict"].as_str().unwrap_or("").chars().take(160).collect(),
         seconds: t0.elapsed().as_secs_f64(),
         why,
@@ -853,6 +865,17 @@ fn stated_interval(rounds: &[Value], id: &str, param: &str) -> Option<(f64, f64)
         }
     }
     None
+}
+
+/// The 95 % interval the estimate of round 1 stated for `param` of the set member `id`,
+/// when the loop went on from that estimate (`rounds` is then round 1 alone) and no later
+/// round refitted it: the value the final file holds is the set's.
+fn estimate_interval(rounds: &[Value], id: &str, param: &str) -> Option<(f64, f64)> {
+    let set = rounds.first()?["within_uncertainty"]["set"].as_array()?;
+    let member = set.iter().find(|c| c["cause"] == id)?;
+    let k = member["params"].as_array()?.iter().position(|p| p[0] == param)?;
+    let ci = &member["ci95"][k];
+    Some((ci[0].as_f64()?, ci[1].as_f64()?))
 }
 
 /// The effects not found, counted by what they remove of the error at the round that
@@ -1088,6 +1111,7 @@ fn summary(o: &[Outcome]) -> bool {
     };
     let ((ii, it), (pi, pt)) = (cov_where(false), cov_where(true));
     println!("  maps as identified {}, maps perturbed {}", pct(ii, it), pct(pi, pt));
+    println!("  found with no interval stated: {}", o.iter().map(|x| x.unstated).sum::<usize>());
     let rate = |a: usize, b: usize| if b == 0 { 1.0 } else { a as f64 / b as f64 };
     let cov = rate(cin, ctot);
     rate(honest, total) >= 0.95

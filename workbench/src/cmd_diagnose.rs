@@ -738,7 +738,7 @@ fn render_credits(e: &diagnose::Estimate, ranked: &[&str]) -> String {
     match e.set.is_empty() {
         true => o.push_str(&format!("  no library cause adds {:.0} or more beyond it\n", e.bar)),
         false => o.push_str(&format!(
-            "  beyond it, in order (energy each removes beyond it and those before, bar {:.0}; confirmed on the simulator; values from the set's refit with the maps from the identified data):\n",
+            "  beyond it, in order (energy each removes beyond it and those before, bar {:.0}; confirmed on the simulator; values from the set's refit with the maps from the identified data, 95 % intervals with the maps estimated beside them):\n",
             e.bar
         )),
     }
@@ -749,7 +749,13 @@ fn render_credits(e: &diagnose::Estimate, ranked: &[&str]) -> String {
         ));
     }
     for c in &e.set {
-        let params: Vec<String> = c.params.iter().map(|(n, v, u)| format!("{n} = {} {u}", num(*v))).collect();
+        let interval = |k: usize| c.ci95.get(k).map(|[lo, hi]| format!(" [{}, {}]", num(*lo), num(*hi)));
+        let params = c
+            .params
+            .iter()
+            .enumerate()
+            .map(|(k, (n, v, u))| format!("{n} = {}{} {u}", num(*v), interval(k).unwrap_or_default()));
+        let params: Vec<String> = params.collect();
         let kind = if c.sensor { "sensor" } else { "physical" };
         o.push_str(&format!("    {:<28} {:>9.0}  {} [{kind}]\n", c.cause, c.value(), params.join(", ")));
     }
@@ -800,9 +806,9 @@ fn kind_name(k: &VerdictKind) -> &'static str {
 /// "proposed_effects": TOML text or null, "empirical", "within_uncertainty": null or
 /// {"fields": [[name, RMS σ]], "params": [[first key, factor]], "channels": [[channel,
 /// energy before, after]], "objective": [..], "settled", "credits": [{"cause", "params": [[name,
-/// value, unit]], "linear", "confirmed", "fraction", "shared", "sensor"}] (each cause on
-/// its own), "set": [as "credits"] (the forward selection, each beyond the estimate
-/// refitted with those before), "after_set": [per channel], "provisional": [as "credits"] (taken, but the
+/// value, unit]], "linear", "confirmed", "fraction", "shared", "sensor", "ci95": [[lo, hi]
+/// per parameter] (set members only)}] (each cause on its own), "set": [as "credits"] (the
+/// forward selection, each beyond the estimate refitted with those before), "after_set": [per channel], "provisional": [as "credits"] (taken, but the
 /// refit with them did not settle: not credited), "dropped": [cause] (taken, then not
 /// needed by a later refit), "bar"} (`--maps-within-uncertainty`), "setup",
 /// "timing_s"}`. NaN becomes null.

@@ -1055,6 +1055,10 @@ fn a_controller_delay_beside_perturbed_maps_is_refitted_with_them() {
     assert!(!credited.iter().any(|c| c == "inverter_rate_scale"), "credited {credited:?}");
     let delay = w["set"][0]["params"][0][1].as_f64().unwrap();
     assert!((0.09..=0.15).contains(&delay), "refitted delay {delay} s for 0.12 s");
+    // Its 95 % interval, the maps estimated beside it, holds the value and says something.
+    let ci = &w["set"][0]["ci95"][0];
+    let (lo, hi) = (ci[0].as_f64().unwrap(), ci[1].as_f64().unwrap());
+    assert!(lo <= delay && delay <= hi && hi - lo < delay, "interval [{lo}, {hi}] s for {delay} s");
     let names = w["channels"].as_array().unwrap().iter().map(|c| c[0].as_str().unwrap());
     let after = w["after_set"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap());
     for (ch, e) in names.zip(after) {

@@ -154,6 +154,13 @@ impl Weights {
         (0..self.channels()).map(|c| self.mean(c, n)).collect()
     }
 
+    /// The weights of the fit samples `rows` (positions in the prepared series), row by
+    /// row: what a fit on a thinned subset of the samples weighs its rows by.
+    pub fn on_rows(&self, rows: &[usize]) -> Self {
+        let run_of = rows.iter().map(|&t| self.run_of.get(t).copied().unwrap_or(0)).collect();
+        Self { per_run: self.per_run.clone(), run_of }
+    }
+
     /// One weight per channel on every sample (a single run).
     pub fn uniform(w: impl IntoIterator<Item = f64>) -> Self {
         Self { per_run: w.into_iter().map(|x| vec![x]).collect(), run_of: Vec::new() }

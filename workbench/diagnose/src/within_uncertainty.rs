@@ -23,6 +23,7 @@ use simrod_io::map_prior::{apply, fields, Field};
 use simrod_io::map_uncertainty::Uncertainty;
 
 mod credit;
+mod interval;
 
 pub use credit::Credit;
 
@@ -411,7 +412,9 @@ pub(super) fn estimate(twin: &dyn Twin, p: &Prepared, o: &Options, fx: Effects) 
 fn select(pb: &Problem, mut pick: Option<credit::Pick>, credits: &mut credit::Credits) -> Result<(), String> {
     let mut taken = Vec::<String>::new();
     let mut settled = (Vec::new(), Vec::new(), None);
-    while let Some(next) = pick.take().filter(|_| taken.len() < MAX_SET) {
+    // The last settled refit, where the set's intervals are taken.
+    let mut last: Option<(Problem, Point)> = None;
+    'taking: while let Some(next) = pick.take().filter(|_| taken.len() < MAX_SET) {
         taken.push(next.credit.cause.clone());
         credits.set.push(next.credit);
         let mut free = next.free;
@@ -426,7 +429,7 @@ fn select(pb: &Problem, mut pick: Option<credit::Pick>, credits: &mut credit::Cr
                     all.into_iter().filter(|c| credits.set.iter().all(|k| k.cause != c.cause)).collect();
                 credits.after_set = settled.1;
                 credits.with_set = settled.2;
-                return Ok(());
+                break 'taking;
             }
             credits.after_set = stage.energies(&refit.best.r);
             let Some(cause) = stage.redundant(&refit.best)? else {
@@ -434,6 +437,7 @@ fn select(pb: &Problem, mut pick: Option<credit::Pick>, credits: &mut credit::Cr
                 settled = (credits.set.clone(), credits.after_set.clone(), credits.with_set.clone());
                 let taken: Vec<&str> = taken.iter().map(String::as_str).collect();
                 pick = credit::round(&stage, &refit.best, &taken, false)?.1;
+                last = Some((stage, refit.best));
                 break;
             };
             credits.set.retain(|c| c.cause != cause);
@@ -446,6 +450,10 @@ fn select(pb: &Problem, mut pick: Option<credit::Pick>, credits: &mut credit::Cr
                 return Ok(());
             }
         }
+    }
+    if let Some((stage, at)) = last.filter(|_| !credits.set.is_empty()) {
+        let intervals = stage.intervals(&at).ok_or("the set's normal equations are singular")?;
+        credit::set_intervals(&mut credits.set, &stage.free, &intervals);
     }
     Ok(())
 }

@@ -38,6 +38,9 @@ pub struct Credit {
     pub shared: f64,
     /// A cause of one channel's measurement chain, not of the physics.
     pub sensor: bool,
+    /// A member of the set: each parameter's 95 % interval `[lo, hi]` at the set's last
+    /// settled refit, the maps estimated beside it (empty otherwise).
+    pub ci95: Vec<[f64; 2]>,
 }
 
 impl Credit {
@@ -130,6 +133,14 @@ pub(super) fn set_values(set: &mut [Credit], free: &[(ParamSpec, f64)], values: 
     }
 }
 
+/// Each member of `set` gets its parameters' intervals (`intervals` in the order of `free`).
+pub(super) fn set_intervals(set: &mut [Credit], free: &[(ParamSpec, f64)], intervals: &[[f64; 2]]) {
+    for c in set {
+        let mine = free.iter().zip(intervals).filter(|((s, _), _)| s.cause == c.cause);
+        c.ci95 = mine.map(|(_, iv)| *iv).collect();
+    }
+}
+
 /// A parameter as a credit reports it: name, value, unit.
 fn param_line(s: &ParamSpec, v: f64) -> (String, f64, String) {
     (s.param.to_string(), v, s.unit.to_string())
@@ -192,6 +203,7 @@ impl Context<'_, '_> {
             fraction,
             shared,
             sensor,
+            ci95: Vec::new(),
         })
     }
 
