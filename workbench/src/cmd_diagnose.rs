@@ -82,10 +82,11 @@ How the diagnosis works:
   identified data with it, until no cause adds more (at most four). A significant
   candidate the maps take as well is reported as such: the runs cannot tell the two
   readings apart. A cause counts only where the refit with it settles (otherwise it is
-  reported as provisional). It is no verdict yet; --write-estimate DIR writes the
-  estimate, refitted with the credited set when one stands (changed tables labelled
-  ESTIMATED), for --data-dir, and DIR/effects.toml, the current effects with the set's
-  values, for --effects.
+  reported as provisional); each member of the set gets 95 % intervals with the maps
+  estimated beside it (posterior and fold jackknife, the maps re-estimated per fold).
+  It is no verdict yet; --write-estimate DIR writes the estimate, refitted with the
+  credited set when one stands (changed tables labelled ESTIMATED), for --data-dir, and
+  DIR/effects.toml, the current effects with the set's values, for --effects.
   Files with gaps are refused: cut the run at the gap.
   Several runs are a campaign: the twin runs on each with the same effects and every fit is
   joint, so two effects confounded on one run are told apart when another run separates
