@@ -97,6 +97,12 @@ struct Case {
     /// Noise-free: the same bench, and the same test with nothing hidden.
     exact: Vec<PathBuf>,
     clean: Vec<PathBuf>,
+    setup: Setup,
+}
+
+/// How every case is run: the flags, parsed once.
+#[derive(Clone)]
+struct Setup {
     /// Judge the rounds a kept directory holds instead of running them (`--replay`).
     replay: bool,
     /// `--sensor-noise` for every diagnosis (absolute, or `default`).
@@ -327,13 +333,7 @@ fn strings(v: &[&str]) -> Vec<String> {
 
 /// The runs of case `seed`: the scenario's own, then for a campaign 1–4 more of the
 /// same bench on other profiles and scales; each with its noise-free twin.
-fn make_case(
-    dir: &Path,
-    seed: u64,
-    replay: bool,
-    sensor_noise: Option<&Path>,
-    within: bool,
-) -> Result<Case, String> {
+fn make_case(dir: &Path, seed: u64, setup: &Setup) -> Result<Case, String> {
     let scenario = Scenario::draw(seed);
     let mut r = Rng::new(seed, 7);
     let extra = if r.uniform() < 0.4 { 1 + r.index(4) } else { 0 };
@@ -369,7 +369,7 @@ fn make_case(
         if k == 0 {
             quiet.extend(strings(&["--truth", "exact0.truth.toml"]));
         }
-        if replay {
+        if setup.replay {
             if let Some(f) = [&run, &ex, &cl].into_iter().find(|f| !dir.join(f).is_file()) {
                 return Err(format!("--replay: {} has no {f}", dir.display()));
             }
@@ -382,8 +382,7 @@ fn make_case(
         exact.push(dir.join(ex));
         clean.push(dir.join(cl));
     }
-    let sensor_noise = sensor_noise.map(Path::to_path_buf);
-    Ok(Case { seed, scenario, runs, exact, clean, replay, sensor_noise, within })
+    Ok(Case { seed, scenario, runs, exact, clean, setup: setup.clone() })
 }
 
 /// `simrod bench` of `s`'s test (profile and scales), noise-free, nothing hidden yet.
@@ -558,16 +557,16 @@ fn blind_loop(dir: &Path, c: &Case) -> Result<Rounds, String> {
         let mut a = strings(&["diagnose"]);
         a.extend(runs.iter().cloned());
         a.extend(strings(&["--json", "--write-effects", &out, "--write-data", &data]));
-        let within = c.within && k == 1;
+        let within = c.setup.within && k == 1;
         if within {
             a.extend(strings(&["--maps-within-uncertainty", "--write-estimate", &est]));
         }
         a.extend(added.flags());
-        if let Some(f) = &c.sensor_noise {
+        if let Some(f) = &c.setup.sensor_noise {
             a.extend(["--sensor-noise".to_string(), f.display().to_string()]);
         }
         let kept = dir.join(format!("r{k}.json"));
-        let text = if c.replay {
+        let text = if c.setup.replay {
             std::fs::read_to_string(&kept).map_err(|e| format!("--replay: {}: {e}", kept.display()))?
         } else {
             simrod(dir, &a)?
@@ -577,7 +576,7 @@ fn blind_loop(dir: &Path, c: &Case) -> Result<Rounds, String> {
         let wrote_fx = j.get("effects_written").is_some();
         let wrote_data = j.get("data_written").is_some();
         // Kept for inspection with --keep (in a temporary directory otherwise).
-        if !c.replay {
+        if !c.setup.replay {
             let _ = std::fs::write(&kept, j.to_string());
         }
         let estimated = j.get("estimate_written").is_some();
@@ -908,13 +907,12 @@ fn pct(a: usize, b: usize) -> String {
 fn main() {
     let o = <Options as clap::Parser>::parse();
     let (n, first, jobs, check) = (o.cases, o.first, o.jobs as usize, o.check);
-    let within = o.maps_within_uncertainty;
-    let replay = o.replay;
-    let keep = replay.clone().or(o.keep);
+    let keep = o.replay.clone().or(o.keep);
     // The diagnoses run in each case's directory: a file named relative to here is made absolute.
-    let stated =
+    let sensor_noise =
         o.sensor_noise
             .map(|f| if f == Path::new("default") { f } else { std::path::absolute(&f).unwrap_or(f) });
+    let setup = Setup { replay: o.replay.is_some(), sensor_noise, within: o.maps_within_uncertainty };
     println!(
         "{:>9} {:<22} {:>4} {:>6} {:>6} {:>7}  last verdict",
         "seed", "class", "runs", "honest", "rounds", "s"
@@ -925,14 +923,13 @@ fn main() {
     let mut outcomes = Vec::new();
     std::thread::scope(|scope| {
         for _ in 0..jobs {
-            let (tx, next, keep, replay, stated) =
-                (tx.clone(), &next, keep.as_deref(), replay.is_some(), stated.as_deref());
+            let (tx, next, keep, setup) = (tx.clone(), &next, keep.as_deref(), &setup);
             scope.spawn(move || loop {
                 let seed = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 if seed >= first + n {
                     break;
                 }
-                let (text, o) = one_case(seed, keep, replay, stated, within);
+                let (text, o) = one_case(seed, keep, setup);
                 if tx.send((seed, text, o)).is_err() {
                     break;
                 }
@@ -954,13 +951,7 @@ fn main() {
 }
 
 /// Make, run and judge the case of `seed`: its lines of the table, and its outcome.
-fn one_case(
-    seed: u64,
-    keep: Option<&Path>,
-    replay: bool,
-    stated: Option<&Path>,
-    within: bool,
-) -> (String, Option<Outcome>) {
+fn one_case(seed: u64, keep: Option<&Path>, setup: &Setup) -> (String, Option<Outcome>) {
     let dir = match keep {
         Some(k) => {
             let d = k.join(seed.to_string());
@@ -974,7 +965,7 @@ fn one_case(
             Err(e) => return (format!("{seed:>9} no temporary directory: {e}\n"), None),
         },
     };
-    let case = match make_case(dir.path(), seed, replay, stated, within) {
+    let case = match make_case(dir.path(), seed, setup) {
         Ok(c) => c,
         Err(e) => return (format!("{seed:>9} the bench refused the case: {e}\n"), None),
     };

@@ -226,9 +226,8 @@ impl<'a> Problem<'a> {
     /// The member of the set the fit at `at` needs least, if it needs it less than the
     /// bar: for each cause among the free parameters, the penalised energy its return to
     /// the model's value costs with every other unknown following (`u' Σ⁻¹ u`, `Σ` its
-    /// block of the inverse normal matrix, `u` its shift in `delta`s).
-    fn redundant(&self, at: &Point) -> Result<Option<String>, String> {
-        let g = self.gram(&at.jacobian);
+    /// block of the inverse normal matrix `g` at `at`, `u` its shift in `delta`s).
+    fn redundant(&self, at: &Point, g: &[f64]) -> Result<Option<String>, String> {
         let n = self.unknowns.len();
         let values = self.values(&at.x);
         let mut least: Option<(f64, &str)> = None;
@@ -240,7 +239,7 @@ impl<'a> Problem<'a> {
             let cols = pos.iter().map(|&i| {
                 let mut e = vec![0.0; n];
                 e[i] = 1.0;
-                solve_spd(&g, &e, 1e-12).ok_or("the set's normal equations are singular")
+                solve_spd(g, &e, 1e-12).ok_or("the set's normal equations are singular")
             });
             let cols: Vec<Vec<f64>> = cols.collect::<Result<_, _>>()?;
             let sigma: Vec<f64> = pos.iter().flat_map(|&i| cols.iter().map(move |c| c[i])).collect();
@@ -411,9 +410,10 @@ pub(super) fn estimate(twin: &dyn Twin, p: &Prepared, o: &Options, fx: Effects) 
 /// nothing; one that settles once the cause is beside it credits the cause).
 fn select(pb: &Problem, mut pick: Option<credit::Pick>, credits: &mut credit::Credits) -> Result<(), String> {
     let mut taken = Vec::<String>::new();
-    let mut settled = (Vec::new(), Vec::new(), None);
-    // The last settled refit, where the set's intervals are taken.
-    let mut last: Option<(Problem, Point)> = None;
+    let mut settled = Vec::new();
+    // The last settled refit and its normal matrix: the set's model, energies and
+    // intervals are taken there.
+    let mut last: Option<(Problem, Point, Vec<f64>)> = None;
     'taking: while let Some(next) = pick.take().filter(|_| taken.len() < MAX_SET) {
         taken.push(next.credit.cause.clone());
         credits.set.push(next.credit);
@@ -424,20 +424,17 @@ fn select(pb: &Problem, mut pick: Option<credit::Pick>, credits: &mut credit::Cr
             let values = stage.values(&refit.best.x);
             credit::set_values(&mut credits.set, &stage.free, &values);
             if !refit.settled {
-                let all = std::mem::replace(&mut credits.set, settled.0);
+                let all = std::mem::replace(&mut credits.set, settled);
                 credits.provisional =
                     all.into_iter().filter(|c| credits.set.iter().all(|k| k.cause != c.cause)).collect();
-                credits.after_set = settled.1;
-                credits.with_set = settled.2;
                 break 'taking;
             }
-            credits.after_set = stage.energies(&refit.best.r);
-            let Some(cause) = stage.redundant(&refit.best)? else {
-                credits.with_set = Some((stage.data(&refit.best.x), stage.effects(&refit.best.x)));
-                settled = (credits.set.clone(), credits.after_set.clone(), credits.with_set.clone());
+            let g = stage.gram(&refit.best.jacobian);
+            let Some(cause) = stage.redundant(&refit.best, &g)? else {
+                settled = credits.set.clone();
                 let taken: Vec<&str> = taken.iter().map(String::as_str).collect();
                 pick = credit::round(&stage, &refit.best, &taken, false)?.1;
-                last = Some((stage, refit.best));
+                last = Some((stage, refit.best, g));
                 break;
             };
             credits.set.retain(|c| c.cause != cause);
@@ -445,14 +442,14 @@ fn select(pb: &Problem, mut pick: Option<credit::Pick>, credits: &mut credit::Cr
             let kept = stage.free.iter().zip(values).filter(|((s, _), _)| s.cause != cause);
             free = kept.map(|((s, _), v)| (s.clone(), v)).collect();
             if free.is_empty() {
-                credits.after_set.clear();
-                credits.with_set = None;
                 return Ok(());
             }
         }
     }
-    if let Some((stage, at)) = last.filter(|_| !credits.set.is_empty()) {
-        let intervals = stage.intervals(&at).ok_or("the set's normal equations are singular")?;
+    if let Some((stage, at, g)) = last.filter(|_| !credits.set.is_empty()) {
+        credits.after_set = stage.energies(&at.r);
+        credits.with_set = Some((stage.data(&at.x), stage.effects(&at.x)));
+        let intervals = stage.intervals(&at, &g).ok_or("the set's normal equations are singular")?;
         credit::set_intervals(&mut credits.set, &stage.free, &intervals);
     }
     Ok(())

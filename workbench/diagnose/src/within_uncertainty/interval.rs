@@ -15,17 +15,17 @@ use crate::linalg::solve_spd;
 use crate::uncertainty::{fold_jackknife_std, misfit_factor};
 
 impl Problem<'_> {
-    /// Each free library parameter's 95 % interval `[lo, hi]` at the refit `at`, in the
-    /// order of [`Problem::free`], clamped to the parameter's range; `None` where the
-    /// normal equations cannot be solved.
-    pub(super) fn intervals(&self, at: &Point) -> Option<Vec<[f64; 2]>> {
+    /// Each free library parameter's 95 % interval `[lo, hi]` at the refit `at` (`g` its
+    /// penalised normal matrix, [`Problem::gram`]), in the order of [`Problem::free`],
+    /// clamped to the parameter's range; `None` where the normal equations cannot be
+    /// solved.
+    pub(super) fn intervals(&self, at: &Point, g: &[f64]) -> Option<Vec<[f64; 2]>> {
         let n = self.unknowns.len();
         let own: Vec<usize> = (0..n).filter(|&i| matches!(self.unknowns[i], Unknown::Effect(_))).collect();
-        let g = self.gram(&at.jacobian);
         let posterior = own.iter().map(|&i| {
             let mut e = vec![0.0; n];
             e[i] = 1.0;
-            solve_spd(&g, &e, 1e-12).map(|c| c[i].max(0.0).sqrt())
+            solve_spd(g, &e, 1e-12).map(|c| c[i].max(0.0).sqrt())
         });
         let posterior: Vec<f64> = posterior.collect::<Option<_>>()?;
         let precision: Vec<f64> = (0..n).map(|i| self.precision(i)).collect();
