@@ -74,8 +74,8 @@ How the diagnosis works:
   (the corrected maps labelled EMPIRICAL) for --data-dir: a fitted table, not a physical
   effect.
   --maps-within-uncertainty also estimates the maps and parameters within their stated
-  uncertainty (the thesis's σ and smooth shapes, an ASSUMED prior: docs/MODEL.md) by
-  re-simulation, and reports what each channel's error becomes: error the data's own
+  uncertainty (the thesis's σ and smooth shapes, an ASSUMED prior: docs/MODEL.md, a wall
+  beyond 4 σ) by re-simulation, and reports what each channel's error becomes: error the data's own
   uncertainty can explain, or not. It takes up what a missing effect shares with a map's
   error, so beside it each library cause is credited by what it removes beyond it
   (confirmed on the simulator); the best is taken and the maps estimated again from the
@@ -709,6 +709,11 @@ fn render_within(e: &diagnose::Estimate, ranked: &[&str]) -> String {
     params.sort_by(|a, b| b.1.ln().abs().total_cmp(&a.1.ln().abs()));
     let factors: Vec<String> = params.iter().take(3).map(|(n, f)| format!("{n} x{f:.3}")).collect();
     o.push_str(&format!("  moved most: {}; parameters: {}\n", moved.join(", "), factors.join(", ")));
+    let (name, far) = &e.furthest;
+    o.push_str(&format!(
+        "  furthest from the identified data: {name} at {far:.1} σ (beyond {} σ the prior is a wall)\n",
+        diagnose::within_uncertainty::WALL
+    ));
     let left: Vec<&str> = e.left_over().collect();
     match left.is_empty() {
         true => {
@@ -805,7 +810,8 @@ fn kind_name(k: &VerdictKind) -> &'static str {
 /// returned them to the thesis model), "confounded",
 /// "unexplained", "noise": {channel: σ},
 /// "proposed_effects": TOML text or null, "empirical", "within_uncertainty": null or
-/// {"fields": [[name, RMS σ]], "params": [[first key, factor]], "channels": [[channel,
+/// {"fields": [[name, RMS σ]], "params": [[first key, factor]], "furthest": [coefficient
+/// or group, σ], "channels": [[channel,
 /// energy before, after]], "objective": [..], "settled", "credits": [{"cause", "params": [[name,
 /// value, unit]], "linear", "confirmed", "fraction", "shared", "sensor", "ci95": [[lo, hi]
 /// per parameter] (set members only)}] (each cause on its own), "set": [as "credits"] (the

@@ -295,7 +295,7 @@ impl Normal {
         let gne = effects.par_iter().map(|e| cols.iter().map(|c| pb.dot(e, c)).collect()).collect();
         let gee = effects.par_iter().map(|e| effects.iter().map(|f| pb.dot(e, f)).collect()).collect();
         let be = effects.par_iter().map(|e| pb.dot(e, r)).collect();
-        Self { n: cols.len(), gnn: pb.gram(cols), bn, gne, gee, be }
+        Self { n: cols.len(), gnn: pb.gram(cols, x), bn, gne, gee, be }
     }
 
     fn gee(&self, e: usize, f: usize) -> f64 {

@@ -11,6 +11,7 @@
 //! step bias.
 
 use super::{Point, Problem, Unknown};
+use crate::library::current_value;
 use crate::linalg::solve_spd;
 use crate::uncertainty::{fold_jackknife_std, misfit_factor};
 
@@ -28,11 +29,18 @@ impl Problem<'_> {
             solve_spd(g, &e, 1e-12).map(|c| c[i].max(0.0).sqrt())
         });
         let posterior: Vec<f64> = posterior.collect::<Option<_>>()?;
-        let precision: Vec<f64> = (0..n).map(|i| self.precision(i)).collect();
+        // The prior linearised at the refit: its curvature, and the point whose pull is its.
+        let precision: Vec<f64> = (0..n).map(|i| self.curvature(i, at.x[i])).collect();
+        let centre: Vec<f64> = (0..n)
+            .map(|i| match precision[i] {
+                0.0 => at.x[i],
+                p => self.pull(i, at.x[i], at.x[i]) / p,
+            })
+            .collect();
         let folds: Vec<usize> =
             self.rows.iter().map(|&t| self.p.folds.get(t).copied().unwrap_or(0)).collect();
         let weights = self.p.weights.on_rows(&self.rows);
-        let jack = fold_jackknife_std(&weights, &at.r, &at.jacobian, &folds, Some((&precision, &at.x)));
+        let jack = fold_jackknife_std(&weights, &at.r, &at.jacobian, &folds, Some((&precision, &centre)));
         let e_noise = (self.rows.len() * self.w.len()) as f64;
         let birge = misfit_factor(self.dot(&at.r, &at.r), e_noise);
         let values = self.values(&at.x);
@@ -45,5 +53,27 @@ impl Problem<'_> {
             [(v - half).max(s.lower), (v + half).min(s.upper)]
         });
         Some(intervals.collect())
+    }
+
+    /// The member of the set the runs tell least from absent, if they cannot tell it at
+    /// all: every one of its parameters' 95 % `intervals` at the refit's `values` (in the
+    /// order of [`Problem::free`]) holds the model's value. Least: the smallest largest
+    /// distance of a parameter from the model's value in half-widths.
+    pub(super) fn unsupported(&self, values: &[f64], intervals: &[[f64; 2]]) -> Option<String> {
+        let mut causes: Vec<&str> = self.free.iter().map(|(s, _)| s.cause).collect();
+        causes.dedup();
+        let mine = |cause: &str| -> Vec<(f64, f64, [f64; 2])> {
+            let at = self.free.iter().zip(values.iter().zip(intervals));
+            let at = at.filter(|((s, _), _)| s.cause == cause);
+            at.map(|((s, _), (v, iv))| (current_value(&self.fx, s), *v, *iv)).collect()
+        };
+        let held = |cause: &&str| mine(cause).iter().all(|&(v0, _, [lo, hi])| lo <= v0 && v0 <= hi);
+        let depth = |cause: &str| {
+            let far = mine(cause).into_iter();
+            far.map(|(v0, v, [lo, hi])| (v - v0).abs() / (0.5 * (hi - lo)).max(f64::MIN_POSITIVE))
+                .fold(0.0, f64::max)
+        };
+        let least = causes.into_iter().filter(held).min_by(|a, b| depth(a).total_cmp(&depth(b)));
+        least.map(str::to_string)
     }
 }
