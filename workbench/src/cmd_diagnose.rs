@@ -75,8 +75,8 @@ How the diagnosis works:
   effect.
   --maps-within-uncertainty also estimates the maps and parameters within their stated
   uncertainty (the thesis's σ and smooth shapes, an ASSUMED prior: docs/MODEL.md, a wall
-  beyond 4 σ) by re-simulation, and reports what each channel's error becomes: error the data's own
-  uncertainty can explain, or not. It takes up what a missing effect shares with a map's
+  beyond 4 σ) by re-simulation, and reports what each channel's error becomes: error the
+  data's own uncertainty can explain, or not. It takes up what a missing effect shares with a map's
   error, so beside it each library cause is credited by what it removes beyond it
   (confirmed on the simulator); the best is taken and the maps estimated again from the
   identified data with it, until no cause adds more (at most four). A significant

@@ -203,8 +203,9 @@ const JACKKNIFE_MIN_INFO: f64 = 0.5;
 /// over 1.96, so that ±1.96 σ is the jackknife's 95 % interval. `None` with fewer than
 /// three folds that can be left out.
 ///
-/// With a `prior` (each unknown's precision and the point the step starts from; the maps'
-/// coefficients estimated beside a set's parameters) every fold keeps the whole prior, and
+/// With a `prior` (each unknown's precision, and its pull: the prior's half-gradient at the
+/// point the step starts from; the maps' coefficients estimated beside a set's parameters,
+/// their prior linearised there) every fold keeps the whole prior, and
 /// only the unknowns without one must keep their information.
 pub(super) fn fold_jackknife_std(
     weights: &Weights,
@@ -220,10 +221,10 @@ pub(super) fn fold_jackknife_std(
     let sum = |m: &[Vec<f64>]| (0..m[0].len()).map(|x| m.iter().map(|v| v[x]).sum()).collect::<Vec<f64>>();
     let (mut gt, mut bt) = (sum(&g), sum(&b));
     let precision = |i: usize| prior.map_or(0.0, |(p, _)| p[i]);
-    if let Some((p, x)) = prior {
+    if let Some((p, pull)) = prior {
         for i in 0..n {
             gt[i * n + i] += p[i];
-            bt[i] -= p[i] * x[i];
+            bt[i] -= pull[i];
         }
     }
     let full = solve_spd(&gt, &bt, 1e-12)?;
@@ -786,7 +787,7 @@ mod tests {
             let post = solve_spd(&g, &[1.0, 0.0], 1e-12).unwrap()[0].sqrt();
             let r: Vec<f64> = (0..m).map(|t| y[t] - est[0] * x[t] - est[1] * z[t]).collect();
             let jac = vec![vec![x.clone()], vec![z.clone()]];
-            let prior = Some((&[0.0, p][..], &est[..]));
+            let prior = Some((&[0.0, p][..], &[0.0, p * est[1]][..]));
             let jack = fold_jackknife_std(&Weights::uniform([1.0]), &[r], &jac, &folds, prior)
                 .expect("every fold can go: the prior holds the nuisance")[0];
             inside += usize::from((est[0] - a).abs() <= 1.96 * post.max(jack));

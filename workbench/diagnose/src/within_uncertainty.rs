@@ -513,11 +513,14 @@ fn select(pb: &Problem, mut pick: Option<credit::Pick>, credits: &mut credit::Cr
                 break 'taking;
             }
             let g = stage.gram(&refit.best.jacobian, &refit.best.x);
-            let intervals =
-                stage.intervals(&refit.best, &g).ok_or("the set's normal equations are singular")?;
-            let drop = match stage.redundant(&refit.best, &g)? {
-                Some(cause) => Some(cause),
-                None => stage.unsupported(&values, &intervals),
+            // The intervals (a fold jackknife) only where no member is redundant.
+            let (drop, intervals) = match stage.redundant(&refit.best, &g)? {
+                Some(cause) => (Some(cause), Vec::new()),
+                None => {
+                    let iv =
+                        stage.intervals(&refit.best, &g).ok_or("the set's normal equations are singular")?;
+                    (stage.unsupported(&values, &iv), iv)
+                }
             };
             let Some(cause) = drop else {
                 settled = credits.set.clone();

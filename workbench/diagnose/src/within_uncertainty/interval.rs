@@ -29,18 +29,13 @@ impl Problem<'_> {
             solve_spd(g, &e, 1e-12).map(|c| c[i].max(0.0).sqrt())
         });
         let posterior: Vec<f64> = posterior.collect::<Option<_>>()?;
-        // The prior linearised at the refit: its curvature, and the point whose pull is its.
+        // The prior linearised at the refit: its curvature and its pull there.
         let precision: Vec<f64> = (0..n).map(|i| self.curvature(i, at.x[i])).collect();
-        let centre: Vec<f64> = (0..n)
-            .map(|i| match precision[i] {
-                0.0 => at.x[i],
-                p => self.pull(i, at.x[i], at.x[i]) / p,
-            })
-            .collect();
+        let pull: Vec<f64> = (0..n).map(|i| self.pull(i, at.x[i], at.x[i])).collect();
         let folds: Vec<usize> =
             self.rows.iter().map(|&t| self.p.folds.get(t).copied().unwrap_or(0)).collect();
         let weights = self.p.weights.on_rows(&self.rows);
-        let jack = fold_jackknife_std(&weights, &at.r, &at.jacobian, &folds, Some((&precision, &centre)));
+        let jack = fold_jackknife_std(&weights, &at.r, &at.jacobian, &folds, Some((&precision, &pull)));
         let e_noise = (self.rows.len() * self.w.len()) as f64;
         let birge = misfit_factor(self.dot(&at.r, &at.r), e_noise);
         let values = self.values(&at.x);
