@@ -78,8 +78,11 @@ How the diagnosis works:
   beyond 4 σ) by re-simulation, and reports what each channel's error becomes: error the
   data's own uncertainty can explain, or not. It takes up what a missing effect shares with a map's
   error, so beside it each library cause is credited by what it removes beyond it
-  (confirmed on the simulator); the best is taken and the maps estimated again from the
-  identified data with it, until no cause adds more (at most four). A significant
+  (confirmed on the simulator). The set starts from the verdict's causes, refitted with
+  the maps from the identified data (dropped only where the refit no longer needs them);
+  then the best credited cause is taken — or another of its round's confirmed causes
+  whose refit fits better — and the maps estimated again from the identified data with
+  it, until no cause adds more (at most four). A significant
   candidate the maps take as well is reported as such: the runs cannot tell the two
   readings apart. A cause counts only where the refit with it settles (otherwise it is
   reported as provisional); each member of the set gets 95 % intervals with the maps
@@ -128,8 +131,9 @@ pub struct DiagnoseArgs {
     /// Also estimate the maps and parameters within their stated uncertainty
     /// (docs/MODEL.md: the σ of every map and parameter and the smooth shapes of their
     /// error, an ASSUMED prior) by re-simulation, and report how much of each channel's
-    /// error that leaves, and which library causes add beyond it (each taken refitted with
-    /// the maps). The diagnosis itself is unchanged. Slow: about 300 simulations per
+    /// error that leaves, the verdict's causes refitted with the maps, and which library
+    /// causes add beyond them (each taken refitted with the maps). The diagnosis itself is
+    /// unchanged. Slow: about 300 simulations per
     /// iterate, up to ten iterates until settled, again for each cause taken.
     #[arg(long)]
     pub maps_within_uncertainty: bool,
@@ -356,9 +360,12 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
     let diagnosis = diagnose::diagnose(&campaign, &fitted.series, &o, Some(&probe))
         .map_err(|e| CmdError::Runtime(format!("{src}: diagnosis failed: {e}")))?;
     let within = match args.maps_within_uncertainty {
-        true => Some(diagnose::estimate_within_uncertainty(&campaign, &fitted.series, &o).map_err(|e| {
-            CmdError::Runtime(format!("{src}: the estimate within the uncertainty failed: {e}"))
-        })?),
+        true => Some(
+            diagnose::estimate_within_uncertainty(&campaign, &fitted.series, &o, &diagnosis.proposed)
+                .map_err(|e| {
+                    CmdError::Runtime(format!("{src}: the estimate within the uncertainty failed: {e}"))
+                })?,
+        ),
         false => None,
     };
     let t2 = Instant::now();
@@ -744,7 +751,7 @@ fn render_credits(e: &diagnose::Estimate, ranked: &[&str]) -> String {
     match e.set.is_empty() {
         true => o.push_str(&format!("  no library cause adds {:.0} or more beyond it\n", e.bar)),
         false => o.push_str(&format!(
-            "  beyond it, in order (energy each removes beyond it and those before, bar {:.0}; confirmed on the simulator; values from the set's refit with the maps from the identified data, 95 % intervals with the maps estimated beside them):\n",
+            "  beyond it, in order (the ordinary verdict's set first, then the energy each removes beyond it and those before, bar {:.0}; confirmed on the simulator; values from the set's refit with the maps from the identified data, 95 % intervals with the maps estimated beside them):\n",
             e.bar
         )),
     }
@@ -752,6 +759,11 @@ fn render_credits(e: &diagnose::Estimate, ranked: &[&str]) -> String {
         o.push_str(&format!(
             "  taken and dropped again (a later refit did not need them): {}\n",
             e.dropped.join(", ")
+        ));
+    }
+    for (cause, rival) in &e.lost_to {
+        o.push_str(&format!(
+            "  {cause} taken and replaced: the set refitted with {rival} in its place fits better (lower penalised energy)\n"
         ));
     }
     for c in &e.set {
@@ -763,13 +775,28 @@ fn render_credits(e: &diagnose::Estimate, ranked: &[&str]) -> String {
             .map(|(k, (n, v, u))| format!("{n} = {}{} {u}", num(*v), interval(k).unwrap_or_default()));
         let params: Vec<String> = params.collect();
         let kind = if c.sensor { "sensor" } else { "physical" };
-        o.push_str(&format!("    {:<28} {:>9.0}  {} [{kind}]\n", c.cause, c.value(), params.join(", ")));
+        let credit = match c.verdict {
+            true => "verdict's".to_string(),
+            false => format!("{:.0}", c.value()),
+        };
+        o.push_str(&format!("    {:<28} {credit:>9}  {} [{kind}]\n", c.cause, params.join(", ")));
     }
     for c in &e.provisional {
         o.push_str(&format!(
             "  {} ({:.0}) not credited: the refit of the maps with it did not settle\n",
             c.cause,
             c.value()
+        ));
+    }
+    for c in e.set.iter().filter(|c| c.verdict) {
+        let Some(alone) = e.credits.iter().find(|k| k.cause == c.cause && k.value() < e.bar) else {
+            continue;
+        };
+        o.push_str(&format!(
+            "  {}: the verdict's, kept; the maps and parameters within their uncertainty take {} of its signature as well, and alone it adds {:.0} beyond the estimate: these runs cannot tell it from an error of the identified data\n",
+            c.cause,
+            pct(alone.shared),
+            alone.value()
         ));
     }
     for name in ranked {

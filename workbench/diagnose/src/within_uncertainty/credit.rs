@@ -13,6 +13,8 @@
 
 use std::sync::Arc;
 
+use model_core::Effects;
+
 use super::{Outputs, Point, Problem};
 use crate::library::{current_value, library, with_values, ParamSpec};
 use crate::linalg::solve_spd;
@@ -41,6 +43,10 @@ pub struct Credit {
     /// A member of the set: each parameter's 95 % interval `[lo, hi]` at the set's last
     /// settled refit, the maps estimated beside it (empty otherwise).
     pub ci95: Vec<[f64; 2]>,
+    /// A member of the ordinary verdict's set, freed beside the maps from the verdict's
+    /// values: it has no credit of its own beyond the estimate (`linear` 0), and only
+    /// [`super::Problem::unsupported`] drops it.
+    pub verdict: bool,
 }
 
 impl Credit {
@@ -70,26 +76,56 @@ pub(super) struct Credits {
     pub provisional: Vec<Credit>,
     /// Causes taken and then dropped: a later refit no longer needed them.
     pub dropped: Vec<String>,
+    /// Causes taken and then replaced by a rival of their round whose refit fit better:
+    /// the cause, the rival.
+    pub lost_to: Vec<(String, String)>,
     /// The model at the last settled refit of the set: its data and effects.
     pub with_set: Option<(simrod_io::datadir::ModelData, model_core::Effects)>,
 }
 
-/// The cause a round takes, and the set with it.
+/// The causes a round takes (one; the verdict's set at the start), and the set with them.
 pub(super) struct Pick {
-    pub credit: Credit,
-    /// The set's library parameters, this cause's among them, at their values.
+    pub credits: Vec<Credit>,
+    /// The set's library parameters, these causes' among them, at their values.
     pub free: Vec<(ParamSpec, f64)>,
 }
 
+/// The ordinary verdict's set as the selection's first stage: every library cause whose
+/// parameters `proposed` (the verdict's effects) sets apart from the model's (`pb.fx`),
+/// all its parameters freed from the verdict's values; `None` where it proposes none.
+pub(super) fn verdict(pb: &Problem, proposed: &Effects) -> Option<Pick> {
+    let specs = library(&pb.o.params);
+    let differs = |e: &usize| current_value(proposed, &specs[*e]) != current_value(&pb.fx, &specs[*e]);
+    let (mut credits, mut free) = (Vec::new(), Vec::new());
+    for (cause, idx) in effect_groups(&specs).into_iter().filter(|(_, idx)| idx.iter().any(differs)) {
+        let at: Vec<(ParamSpec, f64)> =
+            idx.iter().map(|&e| (specs[e].clone(), current_value(proposed, &specs[e]))).collect();
+        credits.push(Credit {
+            cause: cause.to_string(),
+            params: at.iter().map(|(s, v)| param_line(s, *v)).collect(),
+            linear: 0.0,
+            confirmed: None,
+            fraction: 1.0,
+            shared: 0.0,
+            sensor: idx.iter().all(|&e| specs[e].is_chain()),
+            ci95: Vec::new(),
+            verdict: true,
+        });
+        free.extend(at);
+    }
+    (!credits.is_empty()).then_some(Pick { credits, free })
+}
+
 /// One round at the point `at` of `pb` (the causes `taken` refitted there): with
-/// `each`, every open cause's credit on its own (confirmed where above the bar), and the
-/// best confirmed of the [`CONFIRMED_PER_ROUND`] best linear credits, if above the bar.
+/// `each`, every open cause's credit on its own (confirmed where above the bar), and
+/// those of the [`CONFIRMED_PER_ROUND`] best linear credits confirmed above the bar, best
+/// first (the rest are the best's rivals, [`super::select`]).
 pub(super) fn round(
     pb: &Problem,
     at: &Point,
     taken: &[&str],
     each: bool,
-) -> Result<(Vec<Credit>, Option<Pick>), String> {
+) -> Result<(Vec<Credit>, Vec<Pick>), String> {
     let specs = library(&pb.o.params);
     let fx = pb.effects(&at.x);
     let starts: Vec<f64> = specs.iter().map(|s| current_value(&fx, s)).collect();
@@ -118,11 +154,8 @@ pub(super) fn round(
         false => Vec::new(),
     };
     all.sort_by(|a, b| b.value().total_cmp(&a.value()));
-    let pick = match cx.best_of_round(&causes, &own)? {
-        Some((credit, idx)) => Some(cx.pick(credit, idx)?),
-        None => None,
-    };
-    Ok((all, pick))
+    let picks = cx.confirmed(&causes, &own)?.into_iter().map(|(credit, idx)| cx.pick(credit, idx));
+    Ok((all, picks.collect::<Result<_, _>>()?))
 }
 
 /// The set's credits' parameters at the refit's `values` of the library parameters `free`.
@@ -204,28 +237,30 @@ impl Context<'_, '_> {
             shared,
             sensor,
             ci95: Vec::new(),
+            verdict: false,
         })
     }
 
-    /// The best confirmed cause above the bar among the [`CONFIRMED_PER_ROUND`] best
-    /// linear credits beyond the estimate.
-    fn best_of_round<'c>(
+    /// The causes confirmed above the bar among the [`CONFIRMED_PER_ROUND`] best linear
+    /// credits beyond the estimate, best confirmed first.
+    fn confirmed<'c>(
         &self,
         causes: &'c [(&'static str, Vec<usize>)],
         own: &Step,
-    ) -> Result<Option<(Credit, &'c [usize])>, String> {
+    ) -> Result<Vec<(Credit, &'c [usize])>, String> {
         let linear =
             causes.iter().filter_map(|(c, idx)| Some((self.credit(c, idx, own, false).ok()?.linear, c, idx)));
         let mut linear: Vec<_> = linear.filter(|(l, _, _)| *l >= self.pb.bar).collect();
         linear.sort_by(|a, b| b.0.total_cmp(&a.0));
-        let mut best: Option<(Credit, &[usize])> = None;
+        let mut above = Vec::new();
         for (_, c, idx) in linear.into_iter().take(CONFIRMED_PER_ROUND) {
             let k = self.credit(c, idx, own, true)?;
-            if k.value() >= self.pb.bar && best.as_ref().is_none_or(|b| k.value() > b.0.value()) {
-                best = Some((k, idx));
+            if k.value() >= self.pb.bar {
+                above.push((k, idx.as_slice()));
             }
         }
-        Ok(best)
+        above.sort_by(|a, b| b.0.value().total_cmp(&a.0.value()));
+        Ok(above)
     }
 
     /// The set once `credit` (columns `idx`) is taken: the set's parameters at their
@@ -236,7 +271,7 @@ impl Context<'_, '_> {
         let pb = self.pb;
         let held = pb.free.iter().map(|(s, _)| s.clone()).zip(pb.values(&x));
         let free = held.chain(idx.iter().map(|&e| self.specs[e].clone()).zip(values)).collect();
-        Ok(Pick { credit, free })
+        Ok(Pick { credits: vec![credit], free })
     }
 
     /// The simulator's credit of the `joint` step (columns and step) beyond the own

@@ -53,10 +53,17 @@ impl Problem<'_> {
     /// The member of the set the runs tell least from absent, if they cannot tell it at
     /// all: every one of its parameters' 95 % `intervals` at the refit's `values` (in the
     /// order of [`Problem::free`]) holds the model's value. Least: the smallest largest
-    /// distance of a parameter from the model's value in half-widths.
-    pub(super) fn unsupported(&self, values: &[f64], intervals: &[[f64; 2]]) -> Option<String> {
+    /// distance of a parameter from the model's value in half-widths. The causes `kept`
+    /// (the verdict's) are not weighed.
+    pub(super) fn unsupported(
+        &self,
+        values: &[f64],
+        intervals: &[[f64; 2]],
+        kept: &[&str],
+    ) -> Option<String> {
         let mut causes: Vec<&str> = self.free.iter().map(|(s, _)| s.cause).collect();
         causes.dedup();
+        causes.retain(|c| !kept.contains(c));
         let mine = |cause: &str| -> Vec<(f64, f64, [f64; 2])> {
             let at = self.free.iter().zip(values.iter().zip(intervals));
             let at = at.filter(|((s, _), _)| s.cause == cause);
