@@ -80,9 +80,10 @@ pub struct Estimate {
     pub settled: bool,
     /// Every library cause on its own beside the estimate, highest credit first.
     pub credits: Vec<Credit>,
-    /// The causes that add beyond the estimate (forward selection): each credited
-    /// beyond the estimate refitted with the causes before it; values from the last
-    /// refit of the set with the maps.
+    /// The set beside the estimate: the ordinary verdict's causes first
+    /// ([`Credit::verdict`]), then those that add beyond it (forward selection), each
+    /// credited beyond the estimate refitted with the causes before it; values from the
+    /// last refit of the set with the maps.
     pub set: Vec<Credit>,
     /// Per channel, the weighted error energy per fit sample with the set refitted beside
     /// the maps (empty without a set).
