@@ -44,8 +44,8 @@ pub struct Credit {
     /// settled refit, the maps estimated beside it (empty otherwise).
     pub ci95: Vec<[f64; 2]>,
     /// A member of the ordinary verdict's set, freed beside the maps from the verdict's
-    /// values: it has no credit of its own beyond the estimate (`linear` 0), and only
-    /// [`super::Problem::unsupported`] drops it.
+    /// values: it has no credit of its own beyond the estimate (`linear` 0), and only a
+    /// refit that no longer needs it drops it (not the interval rule).
     pub verdict: bool,
 }
 
