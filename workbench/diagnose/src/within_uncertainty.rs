@@ -24,6 +24,7 @@ use simrod_io::map_uncertainty::Uncertainty;
 
 mod credit;
 mod interval;
+mod settling;
 
 pub use credit::Credit;
 
@@ -31,6 +32,7 @@ use super::engine::{Options, Twin};
 use super::library::{current_value, with_values, ParamSpec};
 use super::linalg::solve_spd;
 use super::preparation::{prepare, run_each, Prepared};
+use settling::Settling;
 
 /// Most fit samples the fit reads (every k-th of [`Prepared::idx`]); the prior's weight
 /// is scaled by the thinning so that it stands against the whole run's information.
@@ -619,9 +621,6 @@ struct Point {
     jacobian: Vec<Outputs>,
 }
 
-/// Halvings of one step after which a step that still raises the energy settles the fit.
-const HALVINGS_SETTLE: usize = 3;
-
 /// The damped Gauss–Newton fit.
 struct Fit {
     best: Point,
@@ -633,17 +632,13 @@ struct Fit {
 }
 
 impl Problem<'_> {
-    /// Evaluations from `x` until a whole step removes less than the bar (settled), at
-    /// most [`MAX_EVALUATIONS`]; a step that raises the penalised energy is taken back
-    /// halfway towards the best point. A step shortened so says that it was too long, not
-    /// that the fit is done: what it removes does not settle the fit (the 120 ms delay
-    /// beside perturbed maps, test seed 9021: its refit stopped on a halved step's 432 at
-    /// 45,705 with SiemensEnc 1.52x the noise's energy; going on reached 42,205 and 0.95x).
-    /// A step that raises the energy at every length down to [`HALVINGS_SETTLE`] halvings
-    /// has nothing left to remove along it: the fit settled at the best point.
+    /// Evaluations from `x` until the fit settles ([`Settling`]), at most
+    /// [`MAX_EVALUATIONS`]; a step that raises the penalised energy is taken back halfway
+    /// towards the best point.
     fn fit(&self, mut x: Vec<f64>) -> Result<Fit, String> {
         let mut best: Option<Point> = None;
-        let (mut objective, mut before, mut settled, mut halved) = (Vec::new(), None, false, 0);
+        let (mut objective, mut before, mut settled) = (Vec::new(), None, false);
+        let mut settling = Settling::default();
         for _ in 0..MAX_EVALUATIONS {
             let y = self.outputs(&x)?;
             let r = self.residual(&y);
@@ -656,8 +651,7 @@ impl Problem<'_> {
             let gain = match best.as_ref() {
                 Some(b) if energy > b.energy => {
                     x = b.x.iter().zip(&x).map(|(a, c)| a + 0.5 * (c - a)).collect();
-                    halved += 1;
-                    settled = halved > HALVINGS_SETTLE;
+                    settled = settling.raised();
                     match settled {
                         true => break,
                         false => continue,
@@ -669,8 +663,7 @@ impl Problem<'_> {
             let jacobian = self.jacobian(&x, &y)?;
             let next = self.step(&jacobian, &r, &x).ok_or("the estimate's normal equations are singular")?;
             best = Some(Point { x: std::mem::replace(&mut x, next), y, r, energy, jacobian });
-            let whole = std::mem::take(&mut halved) == 0;
-            if gain < self.bar && whole {
+            if settling.accepted(gain, self.bar) {
                 settled = true;
                 break;
             }
