@@ -45,7 +45,8 @@ impl Settling {
 
 #[cfg(test)]
 mod tests {
-    use super::Settling;
+    use super::{Settling, RAISES_SETTLE};
+    use crate::within_uncertainty::MAX_EVALUATIONS;
 
     const BAR: f64 = 404.0;
 
@@ -63,7 +64,7 @@ mod tests {
         let mut s = Settling::default();
         assert!(!s.accepted(1_900.0, BAR));
         let mut settled = false;
-        for _ in 0..RAISES {
+        for _ in 0..MAX_EVALUATIONS {
             settled = s.raised();
             if settled {
                 break;
@@ -76,16 +77,13 @@ mod tests {
     #[test]
     fn a_material_gain_starts_the_count_again() {
         let mut s = Settling::default();
-        for _ in 0..3 {
+        for _ in 0..RAISES_SETTLE {
             assert!(!s.raised());
         }
         assert!(!s.accepted(2_000.0, BAR));
-        for _ in 0..3 {
+        for _ in 0..RAISES_SETTLE {
             assert!(!s.raised(), "raises before a material gain were still counted");
         }
         assert!(s.raised());
     }
-
-    /// More evaluations than the fit has (`MAX_EVALUATIONS` is 10).
-    const RAISES: usize = 10;
 }
