@@ -652,10 +652,10 @@ impl Problem<'_> {
                 Some(b) if energy > b.energy => {
                     x = b.x.iter().zip(&x).map(|(a, c)| a + 0.5 * (c - a)).collect();
                     settled = settling.raised();
-                    match settled {
-                        true => break,
-                        false => continue,
+                    if settled {
+                        break;
                     }
+                    continue;
                 }
                 Some(b) => b.energy - energy,
                 None => f64::INFINITY,
