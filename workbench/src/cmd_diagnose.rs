@@ -89,7 +89,9 @@ How the diagnosis works:
   estimated beside it (posterior and fold jackknife, the maps re-estimated per fold).
   It is no verdict yet; --write-estimate DIR writes the estimate, refitted with the
   credited set when one stands (changed tables labelled ESTIMATED), for --data-dir, and
-  DIR/effects.toml, the current effects with the set's values, for --effects.
+  DIR/effects.toml, the current effects with the set's values, for --effects — unless
+  it has not settled or it makes a channel worse than the identified model on some run
+  (the verdict's test for a proposal): then it writes nothing and says why.
   Files with gaps are refused: cut the run at the gap.
   Several runs are a campaign: the twin runs on each with the same effects and every fit is
   joint, so two effects confounded on one run are told apart when another run separates
@@ -733,7 +735,12 @@ fn render_within(e: &diagnose::Estimate, ranked: &[&str]) -> String {
         )),
     }
     o.push_str(&render_credits(e, ranked));
-    o.push_str("  write it with --write-estimate DIR and run the twin with --data-dir DIR --effects DIR/effects.toml\n");
+    match &e.refused {
+        None => o.push_str(
+            "  write it with --write-estimate DIR and run the twin with --data-dir DIR --effects DIR/effects.toml\n",
+        ),
+        Some(why) => o.push_str(&format!("  not for adoption (--write-estimate writes nothing): {why}\n")),
+    }
     o
 }
 
@@ -962,6 +969,9 @@ pub fn write_estimate(d: &Diagnosed, dir: &Path) -> Result<Result<(), String>, C
     let Some(e) = &d.within else {
         return Ok(Err("no estimate was made (--maps-within-uncertainty)".into()));
     };
+    if let Some(why) = &e.refused {
+        return Ok(Err(why.clone()));
+    }
     let (data, fx) = match &e.with_set {
         Some((data, fx)) => (data, *fx),
         None => (&e.data, d.setup.base),

@@ -1142,6 +1142,35 @@ fn a_controller_delay_beside_perturbed_maps_is_refitted_with_them() {
     }
 }
 
+/// A connector resistance that drifts with its temperature (bench-only physics: the
+/// library's resistance is constant) over a campaign of two runs, TP07 and TP11 at
+/// different loads (the physics plant, noise seeds 9043–9044 chosen once). The estimate
+/// within the maps' uncertainty takes part of the drift into the resistance's group, and
+/// what fits run 2's supply voltage makes run 1's worse: the verdict would not propose
+/// such a change, so `--write-estimate` writes nothing and says why (proof 28's three
+/// dishonest cases went on from estimates like it).
+#[test]
+fn an_estimate_that_trades_one_runs_error_for_anothers_is_not_written() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path();
+    let drift = "[connector_resistance_drift]\nk_per_w = 0.08\nalpha_per_k = 0.004\ntime_constant_s = 48.0\n";
+    std::fs::write(p.join("hidden.toml"), drift).unwrap();
+    for (profile, scales, seed, out) in
+        [("TP07", ["0.9", "0.84"], "9043", "a.csv"), ("TP11", ["1", "0.6"], "9044", "b.csv")]
+    {
+        let scales = ["--throttle-scale", scales[0], "--load-scale", scales[1]];
+        let a =
+            ["bench", "--profile", profile, "--effects", "hidden.toml", "-q", "--seed", seed, "--out", out];
+        ok(&simrod(p, &[&a[..], &scales[..]].concat()));
+    }
+    let a = ["diagnose", "a.csv", "b.csv", "--json", "--maps-within-uncertainty", "--write-estimate", "est"];
+    let j: Value = serde_json::from_str(&ok(&simrod(p, &a))).unwrap();
+    let refused = j["within_uncertainty"]["refused"].as_str().unwrap_or_default();
+    assert!(refused.contains("x worse on run"), "refused: {refused:?}; verdict {}", j["verdict"]);
+    assert!(j.get("estimate_written").is_none(), "the estimate was reported written");
+    assert!(!p.join("est").exists(), "the estimate was written");
+}
+
 /// The maps and parameters within their stated uncertainty (`--maps-within-uncertainty`):
 /// the physics plant on data perturbed as the thesis' σ allow (`--perturb-maps`, nothing
 /// else hidden), TP07. The estimate is fitted on one run; the data and effects it writes

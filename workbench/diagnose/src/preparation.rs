@@ -522,6 +522,16 @@ pub(super) fn worse_somewhere(
     })
 }
 
+/// [`worse_somewhere`] on the fit samples, said for the user ("it makes I_DC 1.32x
+/// worse on run 2"): the verdict's proposals and the estimate `--write-estimate` would
+/// write are held to the one test.
+pub(super) fn said_worse(p: &Prepared, after: &[Vec<f32>], o: &Options) -> Option<String> {
+    worse_somewhere(p, &p.base_sim, after, &p.idx, o).map(|(name, run, k)| {
+        let on = if p.runs > 1 { format!(" on run {}", run + 1) } else { String::new() };
+        format!("it makes {name} {k:.2}x worse{on}")
+    })
+}
+
 /// Per recorded run (one for a single run): the RMSE ratio of the errors `after` to
 /// `before` (weighted by `w`, on the fit samples `rows`) where it exceeds [`WORSE`] by
 /// more than a chance fit of the noise changes ([`worse_somewhere`]'s test); `None`

@@ -13,7 +13,7 @@ use super::engine::{
 };
 use super::library::{holds, with_values, ParamSpec};
 use super::locate::{follows, region};
-use super::preparation::{channel_energies, flagged_windows, worse_somewhere, Prepared};
+use super::preparation::{channel_energies, flagged_windows, said_worse, Prepared};
 use super::refit::Fit;
 use super::selection::{absorbs, is_gauge};
 use super::sensitivities::Sensitivities;
@@ -328,14 +328,11 @@ impl Evidence<'_> {
     }
 
     /// Whether `sim` makes some channel worse, on the run or on one run of a campaign
-    /// ([`worse_somewhere`]), said for the user: a proposal that trades one run's error
+    /// ([`said_worse`]): a proposal that trades one run's error
     /// for another's is not a physical effect of both, and the user would be told to
     /// make a run worse.
     fn worse(&self, sim: &[Vec<f32>]) -> Option<String> {
-        worse_somewhere(self.p, &self.p.base_sim, sim, &self.p.idx, self.o).map(|(name, run, k)| {
-            let on = if self.p.runs > 1 { format!(" on run {}", run + 1) } else { String::new() };
-            format!("it makes {name} {k:.2}x worse{on}")
-        })
+        said_worse(self.p, sim, self.o)
     }
 
     /// A sensor cause (it moves one channel alone) that leaves its channel in `sim`

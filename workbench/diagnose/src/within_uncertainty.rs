@@ -31,7 +31,7 @@ pub use credit::Credit;
 use super::engine::{Options, Twin};
 use super::library::{current_value, with_values, ParamSpec};
 use super::linalg::solve_spd;
-use super::preparation::{prepare, run_each, Prepared};
+use super::preparation::{prepare, run_each, said_worse, Prepared};
 use settling::Settling;
 
 /// Most fit samples the fit reads (every k-th of [`Prepared::idx`]); the prior's weight
@@ -101,6 +101,11 @@ pub struct Estimate {
     /// The least credit that counts: the diagnosis' material share of the noise's energy
     /// on the rows read (`Options::min_reduction_of_noise`).
     pub bar: f64,
+    /// Why the model this estimate describes (with its set where one stands) must not be
+    /// adopted: it has not settled, or it makes a channel worse than the identified model
+    /// on the run or on one run of a campaign (the verdict's test for a proposal). `None`:
+    /// `--write-estimate` writes it.
+    pub refused: Option<String>,
     /// The estimated model data.
     #[serde(skip)]
     pub data: Arc<ModelData>,
@@ -501,7 +506,30 @@ pub(super) fn estimate(
     let (each, picks) = credit::round(&pb, &fit.best, &[], true)?;
     let mut credits = credit::Credits { each, ..Default::default() };
     select(&pb, credit::verdict(&pb, proposed).map_or(picks, |v| vec![v]), &mut credits)?;
-    Ok(summarise(&pb, &fit, credits))
+    let mut e = summarise(&pb, &fit, credits);
+    e.refused = refused(twin, p, o, &e, fx)?;
+    Ok(e)
+}
+
+/// Why the estimate (with its set where one stands) must not be adopted, by the
+/// verdict's tests: an estimate alone that has not settled is still moving; one that
+/// makes a channel worse on some run trades that run's error for another's (the three
+/// dishonest cases of proof 28, 1,008,371, 1,008,375 and 1,008,388, went on from such an
+/// estimate, with no credited set, and ended with powers 2x worse).
+fn refused(
+    twin: &dyn Twin,
+    p: &Prepared,
+    o: &Options,
+    e: &Estimate,
+    fx: Effects,
+) -> Result<Option<String>, String> {
+    let (data, fx) = match &e.with_set {
+        Some((data, fx)) => (data, *fx),
+        None if !e.settled => return Ok(Some("the estimate has not settled".into())),
+        None => (&e.data, fx),
+    };
+    let sim = twin.run_data(data, &fx, p.stride)?;
+    Ok(said_worse(p, &sim, o).map(|w| format!("the estimated model is a trade, not an explanation: {w}")))
 }
 
 /// Forward selection with backward elimination from `picks` (the verdict's set, or the
@@ -709,6 +737,7 @@ fn summarise(pb: &Problem, fit: &Fit, credits: credit::Credits) -> Estimate {
         dropped: credits.dropped,
         lost_to: credits.lost_to,
         bar: pb.bar,
+        refused: None,
         data: Arc::new(labelled(&pb.base, pb.data(&fit.best.x))),
         with_set: credits.with_set.map(|(d, fx)| (Arc::new(labelled(&pb.base, d)), fx)),
     }
