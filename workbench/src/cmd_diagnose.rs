@@ -82,7 +82,8 @@ How the diagnosis works:
   the maps from the identified data (dropped only where the refit no longer needs them);
   then the best credited cause is taken — or another of its round's confirmed causes
   whose refit fits better — and the maps estimated again from the identified data with
-  it, until no cause adds more (at most four). A significant
+  it, until no cause adds more (at most four); one whose value drifts beside the
+  estimated maps (the verdict's constancy test) is refused and said. A significant
   candidate the maps take as well is reported as such: the runs cannot tell the two
   readings apart. A cause counts only where the refit with it settles (otherwise it is
   reported as provisional); each member of the set gets 95 % intervals with the maps
@@ -766,6 +767,11 @@ fn render_credits(e: &diagnose::Estimate, ranked: &[&str]) -> String {
         o.push_str(&format!(
             "  taken and dropped again (a later refit did not need them): {}\n",
             e.dropped.join(", ")
+        ));
+    }
+    for (cause, why) in &e.drifting {
+        o.push_str(&format!(
+            "  {cause} taken and refused: {why}, a time-varying or differently shaped effect the library lacks, not a constant one\n"
         ));
     }
     for (cause, rival) in &e.lost_to {

@@ -23,6 +23,7 @@ use simrod_io::map_prior::{apply, fields, Field};
 use simrod_io::map_uncertainty::Uncertainty;
 
 mod credit;
+mod drift;
 mod interval;
 mod settling;
 
@@ -98,6 +99,11 @@ pub struct Estimate {
     /// Causes taken and then replaced: the set refitted with a rival of the same round in
     /// their place fit better (lower penalised energy). Each: the cause, its rival.
     pub lost_to: Vec<(String, String)>,
+    /// Causes taken and then refused: beside the estimated maps a parameter of theirs
+    /// drifts over the run, with speed or with the load (the verdict's constancy test), so
+    /// they stand for a time-varying or differently shaped effect the library lacks. Each:
+    /// the cause, why.
+    pub drifting: Vec<(String, String)>,
     /// The least credit that counts: the diagnosis' material share of the noise's energy
     /// on the rows read (`Options::min_reduction_of_noise`).
     pub bar: f64,
@@ -537,7 +543,9 @@ fn refused(
 /// from the identified data — and with each of the round's other confirmed causes in its
 /// place, the refit of lowest penalised energy kept ([`Credits::lost_to`]); a member the
 /// refit no longer needs ([`Problem::redundant`]) or cannot tell from absent
-/// ([`Problem::unsupported`], not the verdict's) dropped and the rest refitted; the next
+/// ([`Problem::unsupported`], not the verdict's) or whose parameter drifts beside the
+/// estimated maps ([`Problem::drifting`], not the verdict's) dropped and the rest
+/// refitted; the next
 /// round at the refit, the causes taken or dropped excluded; at most [`MAX_SET`] taken.
 /// A set stands only where its refit settled: a refit that does not leaves the set as it
 /// was before that cause, the cause and those with it reported as provisional (an
@@ -581,15 +589,20 @@ fn select(pb: &Problem, mut picks: Vec<credit::Pick>, credits: &mut credit::Cred
             // The intervals (a fold jackknife) only where no member is redundant.
             let verdict: Vec<&str> =
                 credits.set.iter().filter(|c| c.verdict).map(|c| c.cause.as_str()).collect();
+            // A member that drifts is dropped as one the refit does not need, and said.
             let (drop, intervals) = match stage.redundant(&refit.best, &g)? {
-                Some(cause) => (Some(cause), Vec::new()),
+                Some(cause) => (Some((cause, None)), Vec::new()),
                 None => {
                     let iv =
                         stage.intervals(&refit.best, &g).ok_or("the set's normal equations are singular")?;
-                    (stage.unsupported(&values, &iv, &verdict), iv)
+                    let drop = match stage.unsupported(&values, &iv, &verdict) {
+                        Some(cause) => Some((cause, None)),
+                        None => stage.drifting(&refit.best, &verdict)?.map(|(c, why)| (c, Some(why))),
+                    };
+                    (drop, iv)
                 }
             };
-            let Some(cause) = drop else {
+            let Some((cause, drifts)) = drop else {
                 settled = credits.set.clone();
                 let taken: Vec<&str> = taken.iter().map(String::as_str).collect();
                 picks = credit::round(&stage, &refit.best, &taken, false)?.1;
@@ -597,7 +610,10 @@ fn select(pb: &Problem, mut picks: Vec<credit::Pick>, credits: &mut credit::Cred
                 break;
             };
             credits.set.retain(|c| c.cause != cause);
-            credits.dropped.push(cause.clone());
+            match drifts {
+                Some(why) => credits.drifting.push((cause.clone(), why)),
+                None => credits.dropped.push(cause.clone()),
+            }
             let kept = stage.free.iter().zip(values).filter(|((s, _), _)| s.cause != cause);
             free = kept.map(|((s, _), v)| (s.clone(), v)).collect();
             if free.is_empty() {
@@ -736,6 +752,7 @@ fn summarise(pb: &Problem, fit: &Fit, credits: credit::Credits) -> Estimate {
         provisional: credits.provisional,
         dropped: credits.dropped,
         lost_to: credits.lost_to,
+        drifting: credits.drifting,
         bar: pb.bar,
         refused: None,
         data: Arc::new(labelled(&pb.base, pb.data(&fit.best.x))),

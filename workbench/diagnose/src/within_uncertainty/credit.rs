@@ -79,6 +79,8 @@ pub(super) struct Credits {
     /// Causes taken and then replaced by a rival of their round whose refit fit better:
     /// the cause, the rival.
     pub lost_to: Vec<(String, String)>,
+    /// Causes taken and refused for a drift beside the estimated maps: the cause, why.
+    pub drifting: Vec<(String, String)>,
     /// The model at the last settled refit of the set: its data and effects.
     pub with_set: Option<(simrod_io::datadir::ModelData, model_core::Effects)>,
 }
