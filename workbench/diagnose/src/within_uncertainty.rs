@@ -585,23 +585,9 @@ fn select(pb: &Problem, mut picks: Vec<credit::Pick>, credits: &mut credit::Cred
                     all.into_iter().filter(|c| credits.set.iter().all(|k| k.cause != c.cause)).collect();
                 break 'taking;
             }
-            let g = stage.gram(&refit.best.jacobian, &refit.best.x);
-            // The intervals (a fold jackknife) only where no member is redundant.
             let verdict: Vec<&str> =
                 credits.set.iter().filter(|c| c.verdict).map(|c| c.cause.as_str()).collect();
-            // A member that drifts is dropped as one the refit does not need, and said.
-            let (drop, intervals) = match stage.redundant(&refit.best, &g)? {
-                Some(cause) => (Some((cause, None)), Vec::new()),
-                None => {
-                    let iv =
-                        stage.intervals(&refit.best, &g).ok_or("the set's normal equations are singular")?;
-                    let drop = match stage.unsupported(&values, &iv, &verdict) {
-                        Some(cause) => Some((cause, None)),
-                        None => stage.drifting(&refit.best, &verdict)?.map(|(c, why)| (c, Some(why))),
-                    };
-                    (drop, iv)
-                }
-            };
+            let (drop, intervals) = stage.needless(&refit.best, &values, &verdict)?;
             let Some((cause, drifts)) = drop else {
                 settled = credits.set.clone();
                 let taken: Vec<&str> = taken.iter().map(String::as_str).collect();
@@ -627,6 +613,30 @@ fn select(pb: &Problem, mut picks: Vec<credit::Pick>, credits: &mut credit::Cred
         credit::set_intervals(&mut credits.set, &stage.free, &intervals);
     }
     Ok(())
+}
+
+/// A member to drop with why where it drifts, and the set's 95 % intervals.
+type Needless = (Option<(String, Option<String>)>, Vec<[f64; 2]>);
+
+impl Problem<'_> {
+    /// A member of the set to drop, if any, with why where it drifts (`None`: the refit
+    /// does not need it), and the 95 % intervals at the settled refit `at` (`values`: the
+    /// free parameters there): one the refit needs least ([`Problem::redundant`]; then no
+    /// intervals, a fold jackknife), else one the runs cannot tell from absent
+    /// ([`Problem::unsupported`]) or whose value drifts ([`Problem::drifting`]), neither
+    /// among the verdict's `kept`.
+    fn needless(&self, at: &Point, values: &[f64], kept: &[&str]) -> Result<Needless, String> {
+        let g = self.gram(&at.jacobian, &at.x);
+        if let Some(cause) = self.redundant(at, &g)? {
+            return Ok((Some((cause, None)), Vec::new()));
+        }
+        let iv = self.intervals(at, &g).ok_or("the set's normal equations are singular")?;
+        let drop = match self.unsupported(values, &iv, kept) {
+            Some(cause) => Some((cause, None)),
+            None => self.drifting(at, kept)?.map(|(c, why)| (c, Some(why))),
+        };
+        Ok((drop, iv))
+    }
 }
 
 /// The set with the library parameters `free` refitted with the maps from the identified
