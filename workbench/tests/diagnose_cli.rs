@@ -1142,6 +1142,17 @@ fn a_controller_delay_beside_perturbed_maps_is_refitted_with_them() {
     }
 }
 
+/// `a.csv` and `b.csv` from the physics plant with `hidden.toml`: each run's profile,
+/// throttle and load scales and noise seed.
+fn two_runs(p: &Path, runs: [(&str, &str, &str, &str); 2]) {
+    for ((profile, throttle, load, seed), out) in runs.into_iter().zip(["a.csv", "b.csv"]) {
+        let scales = ["--throttle-scale", throttle, "--load-scale", load];
+        let a =
+            ["bench", "--profile", profile, "--effects", "hidden.toml", "-q", "--seed", seed, "--out", out];
+        ok(&simrod(p, &[&a[..], &scales[..]].concat()));
+    }
+}
+
 /// A connector resistance that drifts with its temperature (bench-only physics: the
 /// library's resistance is constant) over a campaign of two runs, TP07 and TP11 at
 /// different loads (the physics plant, noise seeds 9043–9044 chosen once). The estimate
@@ -1155,14 +1166,7 @@ fn an_estimate_that_trades_one_runs_error_for_anothers_is_not_written() {
     let p = d.path();
     let drift = "[connector_resistance_drift]\nk_per_w = 0.08\nalpha_per_k = 0.004\ntime_constant_s = 48.0\n";
     std::fs::write(p.join("hidden.toml"), drift).unwrap();
-    for (profile, scales, seed, out) in
-        [("TP07", ["0.9", "0.84"], "9043", "a.csv"), ("TP11", ["1", "0.6"], "9044", "b.csv")]
-    {
-        let scales = ["--throttle-scale", scales[0], "--load-scale", scales[1]];
-        let a =
-            ["bench", "--profile", profile, "--effects", "hidden.toml", "-q", "--seed", seed, "--out", out];
-        ok(&simrod(p, &[&a[..], &scales[..]].concat()));
-    }
+    two_runs(p, [("TP07", "0.9", "0.84", "9043"), ("TP11", "1", "0.6", "9044")]);
     let a = ["diagnose", "a.csv", "b.csv", "--json", "--maps-within-uncertainty", "--write-estimate", "est"];
     let j: Value = serde_json::from_str(&ok(&simrod(p, &a))).unwrap();
     let refused = j["within_uncertainty"]["refused"].as_str().unwrap_or_default();
@@ -1182,14 +1186,7 @@ fn a_drifting_offset_is_not_credited_beyond_the_estimate() {
     let d = tempfile::tempdir().unwrap();
     let p = d.path();
     std::fs::write(p.join("hidden.toml"), "[offset_drift]\nv_dc = 0.05\n").unwrap();
-    for (profile, scales, seed, out) in
-        [("TP11", ["0.93", "0.4"], "9051", "a.csv"), ("TP07", ["1", "0.8"], "9052", "b.csv")]
-    {
-        let scales = ["--throttle-scale", scales[0], "--load-scale", scales[1]];
-        let a =
-            ["bench", "--profile", profile, "--effects", "hidden.toml", "-q", "--seed", seed, "--out", out];
-        ok(&simrod(p, &[&a[..], &scales[..]].concat()));
-    }
+    two_runs(p, [("TP11", "0.93", "0.4", "9051"), ("TP07", "1", "0.8", "9052")]);
     let j: Value = serde_json::from_str(&ok(&simrod(
         p,
         &["diagnose", "a.csv", "b.csv", "--json", "--maps-within-uncertainty"],
