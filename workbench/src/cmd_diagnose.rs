@@ -978,10 +978,7 @@ pub fn write_estimate(d: &Diagnosed, dir: &Path) -> Result<Result<(), String>, C
     if let Some(why) = &e.refused {
         return Ok(Err(why.clone()));
     }
-    let (data, fx) = match &e.with_set {
-        Some((data, fx)) => (data, *fx),
-        None => (&e.data, d.setup.base),
-    };
+    let (data, fx) = e.model(d.setup.base);
     let err = |e: String| CmdError::Runtime(format!("--write-estimate {}: {e}", dir.display()));
     data.write(dir).map_err(|e| err(e.to_string()))?;
     write_effects(&fx, &dir.join(ESTIMATE_EFFECTS)).map_err(|e| err(e.to_string()))?;

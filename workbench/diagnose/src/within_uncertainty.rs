@@ -122,6 +122,15 @@ pub struct Estimate {
 }
 
 impl Estimate {
+    /// The model this estimate describes, on the model's effects `base`: refitted with
+    /// the set where one stands, else the estimate alone with `base`.
+    pub fn model(&self, base: Effects) -> (&Arc<ModelData>, Effects) {
+        match &self.with_set {
+            Some((data, fx)) => (data, *fx),
+            None => (&self.data, base),
+        }
+    }
+
     /// The channels whose error the estimate leaves above [`LEFT_OVER`].
     pub fn left_over(&self) -> impl Iterator<Item = &str> {
         self.channels.iter().filter(|(_, _, a)| *a > LEFT_OVER).map(|(c, _, _)| c.as_str())
@@ -513,7 +522,7 @@ pub(super) fn estimate(
     let mut credits = credit::Credits { each, ..Default::default() };
     select(&pb, credit::verdict(&pb, proposed).map_or(picks, |v| vec![v]), &mut credits)?;
     let mut e = summarise(&pb, &fit, credits);
-    e.refused = refused(twin, p, o, &e, fx)?;
+    e.refused = refused(&pb, &e)?;
     Ok(e)
 }
 
@@ -522,20 +531,14 @@ pub(super) fn estimate(
 /// makes a channel worse on some run trades that run's error for another's (the three
 /// dishonest cases of proof 28, 1,008,371, 1,008,375 and 1,008,388, went on from such an
 /// estimate, with no credited set, and ended with powers 2x worse).
-fn refused(
-    twin: &dyn Twin,
-    p: &Prepared,
-    o: &Options,
-    e: &Estimate,
-    fx: Effects,
-) -> Result<Option<String>, String> {
-    let (data, fx) = match &e.with_set {
-        Some((data, fx)) => (data, *fx),
-        None if !e.settled => return Ok(Some("the estimate has not settled".into())),
-        None => (&e.data, fx),
-    };
-    let sim = twin.run_data(data, &fx, p.stride)?;
-    Ok(said_worse(p, &sim, o).map(|w| format!("the estimated model is a trade, not an explanation: {w}")))
+fn refused(pb: &Problem, e: &Estimate) -> Result<Option<String>, String> {
+    if e.with_set.is_none() && !e.settled {
+        return Ok(Some("the estimate has not settled".into()));
+    }
+    let (data, fx) = e.model(pb.fx);
+    let sim = pb.twin.run_data(data, &fx, pb.p.stride)?;
+    let worse = said_worse(pb.p, &sim, pb.o);
+    Ok(worse.map(|w| format!("the estimated model is a trade, not an explanation: {w}")))
 }
 
 /// Forward selection with backward elimination from `picks` (the verdict's set, or the

@@ -31,7 +31,7 @@ impl Problem<'_> {
         let values = self.values(&at.x);
         let all: Vec<&ParamSpec> = self.free.iter().map(|(s, _)| s).collect();
         let stride = self.p.stride;
-        let sim = self.twin.run_data(&data, &with_values(&self.fx, &all, &values), stride)?;
+        let sim = self.twin.run_data(&data, &self.effects(&at.x), stride)?;
         let columns: Vec<Result<Vec<Vec<f64>>, String>> = own
             .par_iter()
             .map(|&k| {
