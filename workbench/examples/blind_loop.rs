@@ -907,8 +907,9 @@ fn pct(a: usize, b: usize) -> String {
 fn main() {
     let o = <Options as clap::Parser>::parse();
     let (n, first, jobs, check) = (o.cases, o.first, o.jobs as usize, o.check);
-    let keep = o.replay.clone().or(o.keep);
-    // The diagnoses run in each case's directory: a file named relative to here is made absolute.
+    // The diagnoses run in each case's directory: the kept directory and a file named
+    // relative to here are made absolute (a relative --keep failed every case).
+    let keep = o.replay.clone().or(o.keep).map(|k| std::path::absolute(&k).unwrap_or(k));
     let sensor_noise =
         o.sensor_noise
             .map(|f| if f == Path::new("default") { f } else { std::path::absolute(&f).unwrap_or(f) });
