@@ -909,10 +909,9 @@ fn main() {
     let (n, first, jobs, check) = (o.cases, o.first, o.jobs as usize, o.check);
     // The diagnoses run in each case's directory: the kept directory and a file named
     // relative to here are made absolute (a relative --keep failed every case).
-    let keep = o.replay.clone().or(o.keep).map(|k| std::path::absolute(&k).unwrap_or(k));
-    let sensor_noise =
-        o.sensor_noise
-            .map(|f| if f == Path::new("default") { f } else { std::path::absolute(&f).unwrap_or(f) });
+    let absolute = |p: PathBuf| std::path::absolute(&p).unwrap_or(p);
+    let keep = o.replay.clone().or(o.keep).map(absolute);
+    let sensor_noise = o.sensor_noise.map(|f| if f == Path::new("default") { f } else { absolute(f) });
     let setup = Setup { replay: o.replay.is_some(), sensor_noise, within: o.maps_within_uncertainty };
     println!(
         "{:>9} {:<22} {:>4} {:>6} {:>6} {:>7}  last verdict",
