@@ -3,7 +3,8 @@
 //! Four effects, each with one parameter per channel of [`MEASURED`] (declared in
 //! [`crate::effects`]): `sensor_gain` and `sensor_offset` (the sensor's calibration),
 //! `sensor_lag` (a first-order amplifier or anti-alias filter) and `sensor_delay` (the
-//! channel sampled late: an acquisition unit without a shared clock).
+//! channel sampled late: an acquisition unit without a shared clock, by any time, not
+//! only whole steps: a 2.3 ms skew realised as 2 ms was fitted better by a lag).
 //!
 //! Order, as on the bench: `gain x + offset` at the sensor, the lag on the amplifier's
 //! output, then the delay of the acquisition. The derived channels (powers, sums) are
@@ -60,6 +61,25 @@ struct Slots {
     len: u8,
 }
 
+/// A delay of `seconds` at step `dt_s` as whole steps and the fraction of a step beyond
+/// them, in [0, 1). A delay within 1e-4 of a step of a whole number is that number, so
+/// a delay of whole steps stays an exact shift despite the f32 value's round-off (0.1 s
+/// is 100.0000015 steps; f32 keeps 6e-8 of 128 steps, 8e-6).
+pub fn delay_split(seconds: f32, dt_s: f64) -> (u64, f64) {
+    const WHOLE: f64 = 1e-4;
+    let steps = (f64::from(seconds) / dt_s).max(0.0);
+    let whole = (steps + WHOLE) as u64;
+    let frac = steps - whole as f64;
+    (whole, if frac > WHOLE { frac } else { 0.0 })
+}
+
+/// The delay-line slots a delay of `seconds` takes at step `dt_s`: one per whole step,
+/// and one more for a fraction (it interpolates towards the value a step older).
+pub fn delay_slots(seconds: f32, dt_s: f64) -> u64 {
+    let (whole, frac) = delay_split(seconds, dt_s);
+    whole + u64::from(frac > 0.0)
+}
+
 /// The chain's coefficients, fixed at construction.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Chain<R: Real = f32> {
@@ -69,6 +89,9 @@ pub struct Chain<R: Real = f32> {
     /// constant.
     lag: [Option<Lag<R::Wide>>; N_MEASURED],
     delay: [Slots; N_MEASURED],
+    /// Each delay's fraction of a step beyond its whole steps ([`delay_split`]); 0 for a
+    /// delay cut by the line's end.
+    frac: [R; N_MEASURED],
     /// Some channel has a lag or a delay (else the step is a calibration only).
     dynamic: bool,
     /// Every gain 1 and every offset 0: with exact sums (`Real::EXACT_SUM`, fixed point)
@@ -110,20 +133,25 @@ impl<R: Real> Chain<R> {
         dt: f64,
     ) -> Self {
         let mut delay = [Slots::default(); N_MEASURED];
+        let mut frac = [R::ZERO; N_MEASURED];
         let mut used = 0usize;
-        for (slot, d) in delay.iter_mut().zip(delay_s) {
-            let steps = (f64::from(d) / dt + 0.5) as usize;
-            let len = steps.min(SENSOR_DELAY_CAPACITY - used);
+        for ((slot, f), d) in delay.iter_mut().zip(frac.iter_mut()).zip(delay_s) {
+            let wanted = delay_slots(d, dt) as usize;
+            let len = wanted.min(SENSOR_DELAY_CAPACITY - used);
+            if len == wanted {
+                *f = R::from_f64(delay_split(d, dt).1);
+            }
             *slot = Slots { start: used as u8, len: len as u8 };
             used += len;
         }
         let lag = lag_s.map(|t| Lag::new(t, dt));
         let dynamic = lag.iter().any(Option::is_some) || delay.iter().any(|s| s.len > 0);
         let unity = gain.iter().all(|g| *g == 1.0) && offset.iter().all(|k| *k == 0.0);
-        Self { gain: gain.map(R::lit), offset: offset.map(R::lit), lag, delay, dynamic, unity }
+        Self { gain: gain.map(R::lit), offset: offset.map(R::lit), lag, delay, frac, dynamic, unity }
     }
 
-    /// Each channel's delay in whole steps, as realised.
+    /// Each channel's delay-line slots, as realised (a fractional delay takes one more
+    /// than its whole steps).
     pub fn delay_steps(&self) -> [usize; N_MEASURED] {
         self.delay.map(|s| usize::from(s.len))
     }
@@ -158,18 +186,23 @@ impl<R: Real> Chain<R> {
                 *v = R::narrow(*y);
             }
         }
-        for (v, (slots, pos)) in out.iter_mut().zip(self.delay.iter().zip(s.pos.iter_mut())) {
-            *v = delayed(&mut s.line, *slots, pos, *v, first);
+        let delays = self.delay.iter().zip(&self.frac);
+        for (v, ((slots, frac), pos)) in out.iter_mut().zip(delays.zip(s.pos.iter_mut())) {
+            *v = delayed(&mut s.line, *slots, *frac, pos, *v, first);
         }
     }
 }
 
-/// Push `v` into the channel's slots, return the value `len` steps old; on the first
-/// step the slots are filled with `v` (the run starts at rest).
+/// Push `v` into the channel's slots and return the value `len` steps old, or with a
+/// fraction `f` of a step the value `len - 1 + f` steps old: linear between the two
+/// samples around it, as a channel sampled between the model's steps sees a signal
+/// that is smooth at the step's scale. On the first step the slots are filled with `v`
+/// (the run starts at rest).
 #[inline]
 fn delayed<R: Real>(
     line: &mut [R; SENSOR_DELAY_CAPACITY],
     slots: Slots,
+    f: R,
     pos: &mut u8,
     v: R,
     first: bool,
@@ -183,11 +216,18 @@ fn delayed<R: Real>(
         mine.fill(v);
     }
     let p = usize::from(*pos);
+    let next = if p + 1 >= len { 0 } else { p + 1 };
+    // The value one step younger than the oldest: the next slot, or `v` for one slot.
+    let younger = if len == 1 { v } else { mine.get(next).copied().unwrap_or(v) };
     let Some(slot) = mine.get_mut(p) else { return v };
-    let out = *slot;
+    let oldest = *slot;
     *slot = v;
-    *pos = if p + 1 >= len { 0 } else { (p + 1) as u8 };
-    out
+    *pos = next as u8;
+    if f == R::ZERO {
+        oldest
+    } else {
+        younger + f * (oldest - younger)
+    }
 }
 
 #[cfg(test)]
@@ -240,12 +280,41 @@ mod tests {
         assert_eq!(out, [5.0, 5.0, 5.0, 5.0, 6.0]);
     }
 
+    /// A ramp delayed by 2.3 steps is the ramp 2.3 steps later, exactly: linear
+    /// interpolation is exact on a line. Before the ramp, the first value (at rest).
+    #[test]
+    fn a_fractional_delay_interpolates_between_the_steps_around_it() {
+        let xs: std::vec::Vec<f32> = (0..10).map(|k| 4.0 + k as f32 * 0.5).collect();
+        let out = run(&chain(0.0, 0.0023, 1), 1, &xs);
+        for (k, y) in out.iter().enumerate() {
+            let want = 4.0 + (k as f64 - 2.3).max(0.0) * 0.5;
+            assert!((f64::from(*y) - want).abs() < 1e-5, "step {k}: {y} vs {want}");
+        }
+        // Under one step: between the value and the one before it.
+        let out = run(&chain(0.0, 0.00025, 1), 1, &[0.0, 8.0, 8.0]);
+        assert_eq!(out, [0.0, 6.0, 8.0]);
+    }
+
+    #[test]
+    fn delays_are_split_into_whole_steps_and_a_fraction() {
+        assert_eq!(delay_split(0.003, 1e-3), (3, 0.0), "f32 round-off is not a fraction");
+        let (whole, frac) = delay_split(0.0023, 1e-3);
+        assert_eq!(whole, 2);
+        assert!((frac - 0.3).abs() < 1e-6, "{frac}");
+        assert_eq!((delay_slots(0.0023, 1e-3), delay_slots(0.003, 1e-3), delay_slots(0.0, 1e-3)), (3, 3, 0));
+    }
+
     #[test]
     fn delays_share_the_line_and_are_cut_beyond_it() {
         let mut d = [0.0; N];
         (d[0], d[1], d[2]) = (0.1, 0.02, 0.1);
         let c = Chain::<f32>::new([1.0; N], [0.0; N], [0.0; N], d, 1e-3);
         assert_eq!(c.delay_steps()[..3], [100, 20, SENSOR_DELAY_CAPACITY - 120]);
+        // A fractional delay takes a slot more; one cut by the line's end loses its fraction.
+        (d[1], d[2]) = (0.0205, 0.1);
+        let c = Chain::<f32>::new([1.0; N], [0.0; N], [0.0; N], d, 1e-3);
+        assert_eq!(c.delay_steps()[..3], [100, 21, SENSOR_DELAY_CAPACITY - 121]);
+        assert_eq!((c.frac[2], c.frac[1] > 0.49 && c.frac[1] < 0.51), (0.0, true));
     }
 
     /// Against the lag's continuous solution for a ramp from rest at 0:

@@ -107,6 +107,19 @@ impl Step {
     }
 }
 
+/// How the model realises a parameter at its time step: what a fit can resolve of it,
+/// and over what span the output is linear in it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InSteps {
+    /// Any value, smoothly.
+    Continuous,
+    /// Whole steps only (the controller delay): a fit resolves it to a step.
+    Whole,
+    /// Any value, the output linear in it between whole steps (a sensor delay,
+    /// interpolated): its slope is the secant over one step.
+    Linear,
+}
+
 /// What `simrod diagnose` needs to fit a parameter: the step of its sensitivity (the
 /// effect's realistic magnitude, also the scale that conditions the fit) and the
 /// physical bounds of the search, tighter than [`Range`] (what the model accepts).
@@ -118,8 +131,8 @@ pub struct Fit {
     pub lower: f64,
     /// Upper search bound.
     pub upper: f64,
-    /// The model realises the parameter only in whole time steps (a delay).
-    pub whole_steps: bool,
+    /// How the model realises the parameter at its time step.
+    pub in_steps: InSteps,
     /// `(step, to)`: the fit objective has narrow valleys away from the neutral value
     /// (a free play whose clunks must line up in time: with 3.4° of backlash in the
     /// bench, 2° and 5° both fit worse than none), so a diagnosis scans the parameter
@@ -140,7 +153,7 @@ impl Fit {
             step: Step::Abs(step),
             lower,
             upper,
-            whole_steps: false,
+            in_steps: InSteps::Continuous,
             scan: None,
             step_bias: Step::Abs(0.0),
         }
@@ -151,14 +164,18 @@ impl Fit {
             step: Step::Rel(step),
             lower,
             upper,
-            whole_steps: false,
+            in_steps: InSteps::Continuous,
             scan: None,
             step_bias: Step::Abs(0.0),
         }
     }
     /// Realised in whole time steps.
     pub const fn in_whole_steps(self) -> Self {
-        Self { whole_steps: true, ..self }
+        Self { in_steps: InSteps::Whole, ..self }
+    }
+    /// Realised linearly between whole time steps.
+    pub const fn linear_between_steps(self) -> Self {
+        Self { in_steps: InSteps::Linear, ..self }
     }
     /// Scanned on a grid of `step` up to `to` ([`Fit::scan`]).
     pub const fn scanned(self, step: f64, to: f64) -> Self {
@@ -462,7 +479,8 @@ const OFFSET_A_FIT: Option<Fit> = Some(Fit::abs(0.5, -30.0, 30.0));
 /// A sensor's lag or delay [s]: up to a second (far beyond a real chain's 1-100 ms).
 const SENSOR_TIME: Range = Range::closed(0.0, 1.0);
 const LAG_FIT: Option<Fit> = Some(Fit::abs(0.01, 0.0, 0.2).step_biased(Step::Rel(0.03)));
-const DELAY_FIT: Option<Fit> = Some(Fit::abs(0.02, 0.0, 0.1).in_whole_steps().step_biased(Step::Abs(1.4e-3)));
+const DELAY_FIT: Option<Fit> =
+    Some(Fit::abs(0.02, 0.0, 0.1).linear_between_steps().step_biased(Step::Abs(1.2e-3)));
 
 // The order is the diagnose library's order (its ranking breaks ties by it) and the
 // order of sections in written effect files.
@@ -614,8 +632,9 @@ effects! {
         i_dc([12]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of I_DC (0 = off)";
         v_dc([13]): "s", SENSOR_TIME, fit LAG_FIT, model None, "lag of V_DC (0 = off)";
     }
-    /// [s] each measured channel recorded late, in whole steps; all channels together at
-    /// most `SENSOR_DELAY_CAPACITY` steps (0 = off).
+    /// [s] each measured channel recorded late, between steps by linear interpolation;
+    /// all channels together take at most `SENSOR_DELAY_CAPACITY` slots, one per started
+    /// step (0 = off).
     sensor_delay => sensor_delay_s: [f32; N_MEASURED] = [0.0; N_MEASURED],
         proof proof("sutmotorenc", 0.03, 0.08, TP14, (1.0, 0.0)), PerParameter;
     {
@@ -797,7 +816,8 @@ impl fmt::Display for DelayTooLong {
     }
 }
 
-/// Whole steps of `seconds` at `dt_s`, as the model rounds a delay.
+/// Whole steps of `seconds` at `dt_s`, as the model rounds the controller delay (the
+/// sensor delays also realise a fraction: [`crate::chain::delay_split`]).
 pub fn delay_steps(seconds: f32, dt_s: f64) -> u64 {
     (f64::from(seconds) / dt_s + 0.5) as u64
 }
@@ -814,7 +834,7 @@ impl Effects {
             let what = "controller_delay.delay_s";
             return Err(DelayTooLong { what, seconds, steps, capacity: DELAY_CAPACITY, dt_us });
         }
-        let steps: u64 = self.sensor_delay_s.iter().map(|d| delay_steps(*d, dt_s)).sum();
+        let steps: u64 = self.sensor_delay_s.iter().map(|d| crate::chain::delay_slots(*d, dt_s)).sum();
         let capacity = crate::chain::SENSOR_DELAY_CAPACITY;
         if steps > capacity as u64 {
             let seconds = self.sensor_delay_s.iter().map(|d| f64::from(*d)).sum();

@@ -918,6 +918,30 @@ fn a_second_effect_gets_its_round_before_a_table() {
     assert!(lo < 0.25 && 0.25 < hi, "loss interval {lo}..{hi} misses 0.25");
 }
 
+/// A skew of a fraction of a step: Throttle recorded 2.3 ms late by the physics plant's
+/// acquisition (its own interpolation, `plant::sampled::fractional_delay`), TP07 whose
+/// throttle steps on whole seconds. Before, the twin's delay came in whole steps and the
+/// fit kept every 5th sample, so every step edge fell on one phase: the delay fitted
+/// anywhere in 2–5 ms at one energy and a lag was named instead. Now the delay is named,
+/// not the lag, with the truth in its interval.
+#[test]
+fn a_skew_of_a_fraction_of_a_step_is_named_as_a_delay() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path();
+    std::fs::write(p.join("skew.toml"), "[daq_skew]\nthrottle = 0.0023\n").unwrap();
+    let bench =
+        ["bench", "--profile", "TP07", "--effects", "skew.toml", "--seed", "9071", "-q", "--out", "m.csv"];
+    ok(&simrod(p, &bench));
+    let j: Value = serde_json::from_str(&ok(&simrod(p, &["diagnose", "m.csv", "--json"]))).unwrap();
+    let verdict = j["verdict"].as_str().unwrap();
+    let stated = &j["stated"][0];
+    assert_eq!(stated["effect"], "sensor_delay.throttle", "{verdict}");
+    let ci = &stated["ci95"]["throttle"];
+    let (lo, hi) = (ci[0].as_f64().unwrap(), ci[1].as_f64().unwrap());
+    assert!(lo <= 0.0023 && 0.0023 <= hi, "interval {lo}..{hi} misses 2.3 ms: {verdict}");
+    assert!(!verdict.contains("sensor_lag.throttle ("), "{verdict}");
+}
+
 /// A recording delay beside wrong maps (tuning case 500,633: SuTMotorEnc recorded 72 ms
 /// late, the maps perturbed, TP14): the delay removes most of its channel's error, but
 /// the speed map's error keeps the channel above the noise. A delay acts on transients,

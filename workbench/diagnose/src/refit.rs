@@ -3,8 +3,7 @@
 //! scan after, since a rugged objective (backlash events, a clipping limit) hides narrow
 //! basins from a local search. The error a refit removes is measured, not predicted.
 
-use model_core::chain::SENSOR_DELAY_CAPACITY;
-use model_core::effects::delay_steps;
+use model_core::chain::{delay_slots, SENSOR_DELAY_CAPACITY};
 use model_core::Effects;
 
 /// The effect whose parameters share the model's delay line ([`Problem::upper`]).
@@ -109,9 +108,19 @@ impl Problem<'_> {
         let mut others = theta.to_vec();
         others[i] = s.neutral;
         let dt = self.twin.dt_s();
-        let taken: u64 = self.effects(&others).sensor_delay_s.iter().map(|d| delay_steps(*d, dt)).sum();
+        let taken: u64 = self.effects(&others).sensor_delay_s.iter().map(|d| delay_slots(*d, dt)).sum();
         let room = (SENSOR_DELAY_CAPACITY as u64).saturating_sub(taken);
         s.upper.min(room as f64 * dt)
+    }
+
+    /// Whether parameter `i`'s slope at `theta` is a central difference of `h`: for one
+    /// the model is linear in between whole steps (a sensor delay), whose objective
+    /// kinks at every whole step, where a one-sided difference sees only its side (a
+    /// delay fit from 5 ms stayed there: the forward slope is blind to the samples that
+    /// pull it back towards a 2.3 ms skew); where there is room below.
+    fn central(&self, i: usize, theta: &[f64], h: f64) -> bool {
+        let s = self.specs[i];
+        h > 0.0 && s.slope_step(self.twin.dt_s()).is_some() && theta[i] - h >= s.lower
     }
 
     fn effects(&self, theta: &[f64]) -> Effects {
@@ -134,13 +143,15 @@ impl Problem<'_> {
     }
 
     /// Forward-difference step of parameter `i` at `theta`: half the sensitivity step
-    /// (closer to linear), backwards at the upper bound.
+    /// (closer to linear), or the span over which the model is linear in it
+    /// ([`ParamSpec::slope_step`]); backwards at the upper bound.
     fn step(&self, i: usize, theta: &[f64]) -> f64 {
         let s = self.specs[i];
-        if theta[i] + 0.5 * s.delta <= self.upper(i, theta) {
-            0.5 * s.delta
+        let h = s.slope_step(self.twin.dt_s()).unwrap_or(0.5 * s.delta);
+        if theta[i] + h <= self.upper(i, theta) {
+            h
         } else {
-            -0.5 * s.delta
+            -h
         }
     }
 }
@@ -287,31 +298,42 @@ fn coarse_grid(pb: &Problem, s0: &ParamSpec, st: &mut State) {
     }
 }
 
-/// `jac[parameter][channel][fit sample]` by forward differences at `st`.
+/// `jac[parameter][channel][fit sample]` by forward differences at `st`, or central ones
+/// for a parameter the model is linear in between whole steps ([`Problem::central`]).
 fn jacobian(pb: &Problem, st: &State) -> Option<Vec<Vec<Vec<f64>>>> {
-    let thetas: Vec<Vec<f64>> = (0..pb.specs.len())
-        .map(|i| {
-            let mut t = st.theta.clone();
-            t[i] += pb.step(i, &st.theta);
-            t
-        })
-        .collect();
+    let n = pb.specs.len();
+    let h: Vec<f64> = (0..n).map(|i| pb.step(i, &st.theta)).collect();
+    let shifted = |i: usize, by: f64| {
+        let mut t = st.theta.clone();
+        t[i] += by;
+        t
+    };
     // A parameter the twin never reads on these runs leaves the current point's run.
     let unread = |i: usize| pb.p.unread.param(pb.specs[i]);
-    let read: Vec<Vec<f64>> =
-        thetas.iter().enumerate().filter(|(i, _)| !unread(*i)).map(|(_, t)| t.clone()).collect();
-    let mut sims = pb.run_many(&read).into_iter();
-    let runs: Vec<Option<Vec<Vec<f32>>>> = (0..thetas.len())
-        .map(|i| if unread(i) { Some(st.sim.clone()) } else { sims.next().flatten() })
-        .collect();
-    let mut jac = Vec::with_capacity(pb.specs.len());
-    for (i, y) in runs.into_iter().enumerate() {
+    let read: Vec<usize> = (0..n).filter(|&i| !unread(i)).collect();
+    let central: Vec<usize> = read.iter().copied().filter(|&i| pb.central(i, &st.theta, h[i])).collect();
+    let thetas: Vec<Vec<f64>> =
+        read.iter().map(|&i| shifted(i, h[i])).chain(central.iter().map(|&i| shifted(i, -h[i]))).collect();
+    let mut sims = pb.run_many(&thetas).into_iter();
+    let mut up: Vec<Option<Vec<Vec<f32>>>> = vec![Some(st.sim.clone()); n];
+    for &i in &read {
+        up[i] = sims.next().flatten();
+    }
+    let mut down: Vec<Option<Vec<Vec<f32>>>> = vec![None; n];
+    for &i in &central {
+        down[i] = Some(sims.next().flatten()?);
+    }
+    let mut jac = Vec::with_capacity(n);
+    for (i, (y, d)) in up.into_iter().zip(down).enumerate() {
         let y = y?;
-        let h = pb.step(i, &st.theta);
+        let (base, span) = match &d {
+            Some(d) => (d, 2.0 * h[i]),
+            None => (&st.sim, h[i]),
+        };
         jac.push(
             y.iter()
-                .zip(&st.sim)
-                .map(|(a, b)| pb.p.idx.iter().map(|&t| (f64::from(a[t]) - f64::from(b[t])) / h).collect())
+                .zip(base)
+                .map(|(a, b)| pb.p.idx.iter().map(|&t| (f64::from(a[t]) - f64::from(b[t])) / span).collect())
                 .collect(),
         );
     }

@@ -410,15 +410,18 @@ impl<'a> Problem<'a> {
     }
 
     /// The outputs' change per unit of every unknown at `x` (finite differences of
-    /// [`STEP`] σ, or one `delta` of a library parameter, in parallel); an unknown that
-    /// changes only what these runs never read responds 0.
+    /// [`STEP`] σ, or one `delta` of a library parameter or its
+    /// [`ParamSpec::slope_step`], central for those as the refit's, in parallel); an
+    /// unknown that changes only what these runs never read responds 0.
     fn jacobian(&self, x: &[f64], y0: &Outputs) -> Result<Vec<Outputs>, String> {
         let d0 = self.data(x);
-        let jobs: Vec<usize> = (0..self.unknowns.len()).collect();
-        let h = |i: usize| if let Unknown::Effect(_) = self.unknowns[i] { 1.0 } else { STEP };
-        let runs = run_each(&jobs, self.o, |&i| {
+        let (h, central) = self.differences(x);
+        let n = self.unknowns.len();
+        let jobs: Vec<(usize, f64)> =
+            (0..n).map(|i| (i, h[i])).chain((0..n).filter(|&i| central[i]).map(|i| (i, -h[i]))).collect();
+        let runs = run_each(&jobs, self.o, |&(i, by)| {
             let mut xi = x.to_vec();
-            xi[i] += h(i);
+            xi[i] += by;
             let d = self.data(&xi);
             let unread = match self.unknowns[i] {
                 Unknown::Effect(k) => self.p.unread.param(&self.free[k].0),
@@ -429,10 +432,38 @@ impl<'a> Problem<'a> {
                 false => self.twin.run_data(&Arc::new(d), &self.effects(&xi), self.p.stride),
             }
         });
+        let mut runs = runs.into_iter();
+        let mut cols: Vec<Outputs> = Vec::with_capacity(n);
+        for _ in 0..n {
+            cols.push(self.change(runs.next().unwrap_or_else(|| Ok(Vec::new()))?, y0));
+        }
+        for i in (0..n).filter(|&i| central[i]) {
+            let below = self.change(runs.next().unwrap_or_else(|| Ok(Vec::new()))?, y0);
+            for (c, b) in cols[i].iter_mut().zip(below) {
+                c.iter_mut().zip(b).for_each(|(v, w)| *v -= w);
+            }
+        }
+        let span = |i: usize| if central[i] { 2.0 * h[i] } else { h[i] };
         let per_unit = |c: Outputs, h: f64| -> Outputs {
             c.into_iter().map(|v| v.into_iter().map(|d| d / h).collect()).collect()
         };
-        runs.into_iter().enumerate().map(|(i, r)| r.map(|y| per_unit(self.change(y, y0), h(i)))).collect()
+        Ok(cols.into_iter().enumerate().map(|(i, c)| per_unit(c, span(i))).collect())
+    }
+
+    /// Each unknown's finite-difference step at `x` and whether it is taken both ways:
+    /// a library parameter the model is linear in between whole steps (a sensor delay)
+    /// kinks at every whole step, where a one-sided difference sees only its side.
+    fn differences(&self, x: &[f64]) -> (Vec<f64>, Vec<bool>) {
+        let dt = self.twin.dt_s();
+        let at = |u: &Unknown, z: f64| match *u {
+            Unknown::Effect(k) => {
+                let (s, start) = &self.free[k];
+                let v = (start + s.delta * z).clamp(s.lower, s.upper);
+                s.slope_step(dt).map_or((1.0, false), |h| (h / s.delta, v - h >= s.lower))
+            }
+            _ => (STEP, false),
+        };
+        self.unknowns.iter().zip(x).map(|(u, z)| at(u, *z)).unzip()
     }
 
     /// The right-hand side of a step from `x` with columns `cols` and residual `r`:
