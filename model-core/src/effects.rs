@@ -479,8 +479,13 @@ const OFFSET_A_FIT: Option<Fit> = Some(Fit::abs(0.5, -30.0, 30.0));
 /// A sensor's lag or delay [s]: up to a second (far beyond a real chain's 1-100 ms).
 const SENSOR_TIME: Range = Range::closed(0.0, 1.0);
 const LAG_FIT: Option<Fit> = Some(Fit::abs(0.01, 0.0, 0.2).step_biased(Step::Rel(0.03)));
-const DELAY_FIT: Option<Fit> =
-    Some(Fit::abs(0.02, 0.0, 0.1).linear_between_steps().step_biased(Step::Abs(1.2e-3)));
+/// A sensor delay's fit, `bias` [s] its channel's step bias: `examples/step_bias.rs
+/// sensor_delay.CHANNEL` measures each channel, and the twin's step moves a delay fit by
+/// channel, from 0.8 ms on I_DC and V_DC to 3.4 ms on T_Kistler_L (Throttle's 5.0 ms is
+/// a fit left at a coarse grid point on TP14, where the throttle hardly steps).
+const fn delay_fit(bias: f64) -> Option<Fit> {
+    Some(Fit::abs(0.02, 0.0, 0.1).linear_between_steps().step_biased(Step::Abs(bias)))
+}
 
 // The order is the diagnose library's order (its ranking breaks ties by it) and the
 // order of sections in written effect files.
@@ -638,20 +643,20 @@ effects! {
     sensor_delay => sensor_delay_s: [f32; N_MEASURED] = [0.0; N_MEASURED],
         proof proof("sutmotorenc", 0.03, 0.08, TP14, (1.0, 0.0)), PerParameter;
     {
-        throttle([0]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "Throttle recorded late by (0 = off)";
-        sutmotorenc([1]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "SuTMotorEnc recorded late by (0 = off)";
-        c_kistler_l([2]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "C_Kistler_L recorded late by (0 = off)";
-        c_kistler_r([3]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "C_Kistler_R recorded late by (0 = off)";
-        t_kistler_l([4]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "T_Kistler_L recorded late by (0 = off)";
-        t_kistler_r([5]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "T_Kistler_R recorded late by (0 = off)";
-        siemensenc([6]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "SiemensEnc recorded late by (0 = off)";
-        i_xlml_2_2([7]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "I_XLML 2.2 recorded late by (0 = off)";
-        i_xlml_bu1([8]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "I_XLML BU1 recorded late by (0 = off)";
-        i_xlmr_2_3([9]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "I_XLMR 2.3 recorded late by (0 = off)";
-        i_dpu_2_7([10]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "I_DPU 2.7 recorded late by (0 = off)";
-        v_dc_busbars([11]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "V_DC_busbars recorded late by (0 = off)";
-        i_dc([12]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "I_DC recorded late by (0 = off)";
-        v_dc([13]): "s", SENSOR_TIME, fit DELAY_FIT, model None, "V_DC recorded late by (0 = off)";
+        throttle([0]): "s", SENSOR_TIME, fit delay_fit(5.0e-3), model None, "Throttle recorded late by (0 = off)";
+        sutmotorenc([1]): "s", SENSOR_TIME, fit delay_fit(1.2e-3), model None, "SuTMotorEnc recorded late by (0 = off)";
+        c_kistler_l([2]): "s", SENSOR_TIME, fit delay_fit(2.1e-3), model None, "C_Kistler_L recorded late by (0 = off)";
+        c_kistler_r([3]): "s", SENSOR_TIME, fit delay_fit(1.7e-3), model None, "C_Kistler_R recorded late by (0 = off)";
+        t_kistler_l([4]): "s", SENSOR_TIME, fit delay_fit(3.4e-3), model None, "T_Kistler_L recorded late by (0 = off)";
+        t_kistler_r([5]): "s", SENSOR_TIME, fit delay_fit(2.5e-3), model None, "T_Kistler_R recorded late by (0 = off)";
+        siemensenc([6]): "s", SENSOR_TIME, fit delay_fit(1.4e-3), model None, "SiemensEnc recorded late by (0 = off)";
+        i_xlml_2_2([7]): "s", SENSOR_TIME, fit delay_fit(1.0e-3), model None, "I_XLML 2.2 recorded late by (0 = off)";
+        i_xlml_bu1([8]): "s", SENSOR_TIME, fit delay_fit(0.9e-3), model None, "I_XLML BU1 recorded late by (0 = off)";
+        i_xlmr_2_3([9]): "s", SENSOR_TIME, fit delay_fit(1.0e-3), model None, "I_XLMR 2.3 recorded late by (0 = off)";
+        i_dpu_2_7([10]): "s", SENSOR_TIME, fit delay_fit(1.0e-3), model None, "I_DPU 2.7 recorded late by (0 = off)";
+        v_dc_busbars([11]): "s", SENSOR_TIME, fit delay_fit(0.8e-3), model None, "V_DC_busbars recorded late by (0 = off)";
+        i_dc([12]): "s", SENSOR_TIME, fit delay_fit(0.8e-3), model None, "I_DC recorded late by (0 = off)";
+        v_dc([13]): "s", SENSOR_TIME, fit delay_fit(0.8e-3), model None, "V_DC recorded late by (0 = off)";
     }
 }
 

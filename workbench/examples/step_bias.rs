@@ -11,8 +11,10 @@
 //! declared step bias (`model_core::effects::Fit::step_bias`); `tests/hidden_effects.rs`
 //! checks the worst cases of the largest.
 //!
-//! `cargo run --release -p workbench --example step_bias -- [EFFECT] [--exact]`
-//! (`--exact`: the plant's exact outputs, one fit per case).
+//! `cargo run --release -p workbench --example step_bias -- [EFFECT[.PARAM]] [--exact]`
+//! (`--exact`: the plant's exact outputs, one fit per case; `.PARAM`: hide that parameter
+//! at the proof parameter's range instead, e.g. `sensor_delay.throttle`: a chain effect's
+//! bias differs by channel).
 use model_core::{Builtin, Effects};
 use workbench::diagnose::proof::*;
 use workbench::vbench::bench::PlantKind;
@@ -33,11 +35,16 @@ fn main() {
         "{:22} {:12} {:22} {:>11} {:>11} {:>11} {:>9} {:>11} {:>9}",
         "effect", "profile", "param", "truth", "fit", "error", "rel", "noise ±", "/declared"
     );
+    let (only, other) = match only.map(|o| o.split_once('.').unwrap_or((o.as_str(), ""))) {
+        Some((id, param)) => (Some(id), model_core::effects::effect(id).and_then(|e| e.param(param))),
+        None => (None, None),
+    };
     for case in library_cases() {
-        let (id, hidden, lo, hi) = case.params[0];
+        let (id, proof_param, lo, hi) = case.params[0];
         if only.is_some_and(|o| o != id) {
             continue;
         }
+        let hidden = other.map_or(proof_param, |p| p.name);
         let mut profiles = vec![case.profile];
         for b in Builtin::ALL {
             profiles.extend([(b, 0.8, 0.65), (b, 0.8, -0.65)]);
