@@ -100,9 +100,8 @@ impl ParamSpec {
 
     /// The finite-difference step that gives the parameter's slope at time step `dt`
     /// where the model is linear in it over a known span (a sensor delay between whole
-    /// steps: one step); `None` elsewhere. A step spanning several turns of the signal
-    /// gives a secant, not the slope (a 2.3 ms Throttle skew refitted with the delay's
-    /// 10 ms half step stayed at 2.08 ms, σ 1.7 ms, and a lag was named).
+    /// steps: one step); `None` elsewhere. The delay's half sensitivity step (10 ms)
+    /// spans several turns of a signal and gives a secant, not the slope.
     pub fn slope_step(&self, dt: f64) -> Option<f64> {
         (self.in_steps() == Some(InSteps::Linear)).then_some(dt)
     }

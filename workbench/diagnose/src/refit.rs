@@ -115,9 +115,9 @@ impl Problem<'_> {
 
     /// Whether parameter `i`'s slope at `theta` is a central difference of `h`: for one
     /// the model is linear in between whole steps (a sensor delay), whose objective
-    /// kinks at every whole step, where a one-sided difference sees only its side (a
-    /// delay fit from 5 ms stayed there: the forward slope is blind to the samples that
-    /// pull it back towards a 2.3 ms skew); where there is room below.
+    /// kinks at every whole step, where a one-sided difference sees only its side: at a
+    /// step edge the forward slope moves the samples after it, not the ones a shorter
+    /// delay would fix; where there is room below.
     fn central(&self, i: usize, theta: &[f64], h: f64) -> bool {
         let s = self.specs[i];
         h > 0.0 && s.slope_step(self.twin.dt_s()).is_some() && theta[i] - h >= s.lower
