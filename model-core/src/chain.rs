@@ -136,10 +136,11 @@ impl<R: Real> Chain<R> {
         let mut frac = [R::ZERO; N_MEASURED];
         let mut used = 0usize;
         for ((slot, f), d) in delay.iter_mut().zip(frac.iter_mut()).zip(delay_s) {
-            let wanted = delay_slots(d, dt) as usize;
+            let (whole, fraction) = delay_split(d, dt);
+            let wanted = whole as usize + usize::from(fraction > 0.0);
             let len = wanted.min(SENSOR_DELAY_CAPACITY - used);
             if len == wanted {
-                *f = R::from_f64(delay_split(d, dt).1);
+                *f = R::from_f64(fraction);
             }
             *slot = Slots { start: used as u8, len: len as u8 };
             used += len;
@@ -217,16 +218,16 @@ fn delayed<R: Real>(
     }
     let p = usize::from(*pos);
     let next = if p + 1 >= len { 0 } else { p + 1 };
-    // The value one step younger than the oldest: the next slot, or `v` for one slot.
-    let younger = if len == 1 { v } else { mine.get(next).copied().unwrap_or(v) };
+    // With a fraction, the value one step younger than the oldest: the next slot, or
+    // `v` for one slot (read before the write; a whole delay reads nothing more).
+    let younger = (f != R::ZERO).then(|| if len == 1 { v } else { mine.get(next).copied().unwrap_or(v) });
     let Some(slot) = mine.get_mut(p) else { return v };
     let oldest = *slot;
     *slot = v;
     *pos = next as u8;
-    if f == R::ZERO {
-        oldest
-    } else {
-        younger + f * (oldest - younger)
+    match younger {
+        Some(y) => y + f * (oldest - y),
+        None => oldest,
     }
 }
 

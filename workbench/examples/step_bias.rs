@@ -36,7 +36,14 @@ fn main() {
         "effect", "profile", "param", "truth", "fit", "error", "rel", "noise ±", "/declared"
     );
     let (only, other) = match only.map(|o| o.split_once('.').unwrap_or((o.as_str(), ""))) {
-        Some((id, param)) => (Some(id), model_core::effects::effect(id).and_then(|e| e.param(param))),
+        Some((id, "")) => (Some(id), None),
+        Some((id, param)) => match model_core::effects::effect(id).and_then(|e| e.param(param)) {
+            Some(p) => (Some(id), Some(p)),
+            None => {
+                eprintln!("step_bias: {id} has no parameter '{param}'");
+                std::process::exit(2);
+            }
+        },
         None => (None, None),
     };
     for case in library_cases() {

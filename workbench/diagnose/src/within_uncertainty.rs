@@ -252,11 +252,14 @@ impl<'a> Problem<'a> {
             Unknown::Effect(k) => Some((k, *v)),
             _ => None,
         });
-        at.map(|(k, v)| {
-            let (s, start) = &self.free[k];
-            (start + s.delta * v).clamp(s.lower, s.upper)
-        })
-        .collect()
+        at.map(|(k, v)| self.value(k, v)).collect()
+    }
+
+    /// Free library parameter `k`'s value at unknown `z` (its `delta`s from its start),
+    /// within its bounds.
+    fn value(&self, k: usize, z: f64) -> f64 {
+        let (s, start) = &self.free[k];
+        (start + s.delta * z).clamp(s.lower, s.upper)
     }
 
     /// The model's effects at `x`: the free library parameters at their values.
@@ -457,9 +460,9 @@ impl<'a> Problem<'a> {
         let dt = self.twin.dt_s();
         let at = |u: &Unknown, z: f64| match *u {
             Unknown::Effect(k) => {
-                let (s, start) = &self.free[k];
-                let v = (start + s.delta * z).clamp(s.lower, s.upper);
-                s.slope_step(dt).map_or((1.0, false), |h| (h / s.delta, v - h >= s.lower))
+                let s = &self.free[k].0;
+                let below = |h: f64| self.value(k, z) - h >= s.lower;
+                s.slope_step(dt).map_or((1.0, false), |h| (h / s.delta, below(h)))
             }
             _ => (STEP, false),
         };
