@@ -590,7 +590,8 @@ fn refused(pb: &Problem, e: &Estimate) -> Result<Option<String>, String> {
 /// round at the refit, the causes taken or dropped excluded; at most [`MAX_SET`] taken.
 /// Where every member is dropped, the selection starts again from `fallback` (the first
 /// round's causes at the estimate, when `picks` is the verdict's set), the dropped
-/// excluded: a dropped verdict's set says nothing against the estimate's own causes (a
+/// excluded with the faults of their channels ([`gone_with`]): a dropped verdict's set
+/// says nothing against the estimate's own causes (a
 /// false regeneration efficiency dropped, and a hidden 4.6 N m differential friction
 /// credited 3,498 beyond the estimate never tried, tuning case 505,667).
 /// A set stands only where its refit settled: a refit that does not leaves the set as it
@@ -654,7 +655,7 @@ fn select(
             let kept = stage.free.iter().zip(values).filter(|((s, _), _)| s.cause != cause);
             free = kept.map(|((s, _), v)| (s.clone(), v)).collect();
             if free.is_empty() {
-                let gone = |p: &credit::Pick| p.credits.iter().any(|c| taken.contains(&c.cause));
+                let gone = |p: &credit::Pick| p.credits.iter().any(|c| gone_with(c, &taken));
                 picks = std::mem::take(&mut fallback).into_iter().filter(|p| !gone(p)).collect();
                 continue 'taking;
             }
@@ -666,6 +667,18 @@ fn select(
         credit::set_intervals(&mut credits.set, &stage.free, &intervals);
     }
     Ok(())
+}
+
+/// Whether `c` goes with the causes `taken` (and dropped): one of them, or a fault of
+/// the measurement chain of a channel one of them was on. The estimate explained what a
+/// dropped sensor cause fitted on its channel; another fault of that channel is the
+/// same story told again: a C_Kistler_L delay after its dropped lag (tuning case
+/// 505,621), a V_DC gain after a dropped V_DC offset where neither was hidden (proof 29's
+/// kept cases 1,008,713 and 1,008,719, read for this rule: later proofs start above them).
+fn gone_with(c: &Credit, taken: &[String]) -> bool {
+    let channel = |cause: &str| cause.split_once('.').map(|(_, ch)| ch.to_owned());
+    let on = |cause: &String| c.sensor && channel(cause).is_some_and(|ch| channel(&c.cause) == Some(ch));
+    taken.contains(&c.cause) || taken.iter().any(on)
 }
 
 /// A member to drop with why where it drifts, and the set's 95 % intervals.
@@ -851,4 +864,35 @@ fn labelled(base: &ModelData, mut data: ModelData) -> ModelData {
         }
     }
     data
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{gone_with, Credit};
+
+    fn credit(cause: &str, sensor: bool) -> Credit {
+        Credit {
+            cause: cause.into(),
+            params: Vec::new(),
+            linear: 0.0,
+            confirmed: None,
+            fraction: 1.0,
+            shared: 0.0,
+            sensor,
+            ci95: Vec::new(),
+            verdict: false,
+        }
+    }
+
+    #[test]
+    fn a_dropped_sensor_cause_takes_its_channels_other_faults_with_it() {
+        let taken = vec!["sensor_offset.v_dc".to_string(), "regen_efficiency".to_string()];
+        assert!(gone_with(&credit("sensor_offset.v_dc", true), &taken));
+        assert!(gone_with(&credit("sensor_gain.v_dc", true), &taken));
+        assert!(gone_with(&credit("regen_efficiency", false), &taken));
+        // Another channel's fault and a physical cause stay open.
+        assert!(!gone_with(&credit("sensor_gain.v_dc_busbars", true), &taken));
+        assert!(!gone_with(&credit("sensor_gain.i_dc", true), &taken));
+        assert!(!gone_with(&credit("differential_friction", false), &taken));
+    }
 }
