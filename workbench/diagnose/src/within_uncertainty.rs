@@ -607,6 +607,8 @@ fn select(
     credits: &mut credit::Credits,
 ) -> Result<(), String> {
     let mut taken = Vec::<String>::new();
+    // The channels of the measurement-chain causes dropped ([`gone_with`]).
+    let mut chains = Vec::<&str>::new();
     let mut settled = Vec::new();
     // The last settled refit and its intervals: the set's model, energies and intervals
     // are taken there.
@@ -648,6 +650,8 @@ fn select(
                 break;
             };
             credits.set.retain(|c| c.cause != cause);
+            let on = stage.free.iter().filter(|(s, _)| s.cause == cause && s.is_chain());
+            chains.extend(on.map(|(s, _)| s.param));
             match drifts {
                 Some(why) => credits.drifting.push((cause.clone(), why)),
                 None => credits.dropped.push(cause.clone()),
@@ -655,8 +659,8 @@ fn select(
             let kept = stage.free.iter().zip(values).filter(|((s, _), _)| s.cause != cause);
             free = kept.map(|((s, _), v)| (s.clone(), v)).collect();
             if free.is_empty() {
-                let gone = |p: &credit::Pick| p.credits.iter().any(|c| gone_with(c, &taken));
-                picks = std::mem::take(&mut fallback).into_iter().filter(|p| !gone(p)).collect();
+                let open = |p: &credit::Pick| !p.free.iter().any(|(s, _)| gone_with(s, &taken, &chains));
+                picks = std::mem::take(&mut fallback).into_iter().filter(open).collect();
                 continue 'taking;
             }
         }
@@ -669,16 +673,15 @@ fn select(
     Ok(())
 }
 
-/// Whether `c` goes with the causes `taken` (and dropped): one of them, or a fault of
-/// the measurement chain of a channel one of them was on. The estimate explained what a
+/// Whether the parameter `s` goes with the causes `taken` (and dropped): one of theirs,
+/// or a measurement-chain fault of a channel in `chains` (those of the dropped chain
+/// causes; a chain parameter's name is its channel). The estimate explained what a
 /// dropped sensor cause fitted on its channel; another fault of that channel is the
 /// same story told again: a C_Kistler_L delay after its dropped lag (tuning case
 /// 505,621), a V_DC gain after a dropped V_DC offset where neither was hidden (proof 29's
 /// kept cases 1,008,713 and 1,008,719, read for this rule: later proofs start above them).
-fn gone_with(c: &Credit, taken: &[String]) -> bool {
-    let channel = |cause: &str| cause.split_once('.').map(|(_, ch)| ch.to_owned());
-    let on = |cause: &String| c.sensor && channel(cause).is_some_and(|ch| channel(&c.cause) == Some(ch));
-    taken.contains(&c.cause) || taken.iter().any(on)
+fn gone_with(s: &ParamSpec, taken: &[String], chains: &[&str]) -> bool {
+    taken.iter().any(|t| t == s.cause) || (s.is_chain() && chains.contains(&s.param))
 }
 
 /// A member to drop with why where it drifts, and the set's 95 % intervals.
@@ -868,31 +871,26 @@ fn labelled(base: &ModelData, mut data: ModelData) -> ModelData {
 
 #[cfg(test)]
 mod tests {
-    use super::{gone_with, Credit};
+    use super::gone_with;
+    use crate::engine::Options;
+    use crate::library::{library, ParamSpec};
 
-    fn credit(cause: &str, sensor: bool) -> Credit {
-        Credit {
-            cause: cause.into(),
-            params: Vec::new(),
-            linear: 0.0,
-            confirmed: None,
-            fraction: 1.0,
-            shared: 0.0,
-            sensor,
-            ci95: Vec::new(),
-            verdict: false,
-        }
+    fn spec(cause: &str) -> ParamSpec {
+        let all = library(&Options::default().params);
+        all.into_iter().find(|s| s.cause == cause).unwrap_or_else(|| panic!("no {cause}"))
     }
 
     #[test]
     fn a_dropped_sensor_cause_takes_its_channels_other_faults_with_it() {
         let taken = vec!["sensor_offset.v_dc".to_string(), "regen_efficiency".to_string()];
-        assert!(gone_with(&credit("sensor_offset.v_dc", true), &taken));
-        assert!(gone_with(&credit("sensor_gain.v_dc", true), &taken));
-        assert!(gone_with(&credit("regen_efficiency", false), &taken));
+        let chains = ["v_dc"];
+        let gone = |cause: &str| gone_with(&spec(cause), &taken, &chains);
+        assert!(gone("sensor_offset.v_dc"));
+        assert!(gone("sensor_gain.v_dc"));
+        assert!(gone("regen_efficiency"));
         // Another channel's fault and a physical cause stay open.
-        assert!(!gone_with(&credit("sensor_gain.v_dc_busbars", true), &taken));
-        assert!(!gone_with(&credit("sensor_gain.i_dc", true), &taken));
-        assert!(!gone_with(&credit("differential_friction", false), &taken));
+        assert!(!gone("sensor_gain.v_dc_busbars"));
+        assert!(!gone("sensor_gain.i_dc"));
+        assert!(!gone("differential_friction"));
     }
 }
