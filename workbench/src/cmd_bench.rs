@@ -103,6 +103,13 @@ pub struct BenchArgs {
     #[arg(long, value_name = "FILE.toml", requires = "scenario")]
     pub truth: Option<PathBuf>,
 
+    /// Write the bench's model data (its maps and parameters, perturbed with
+    /// `--perturb-maps` or a scenario's perturbation) to this directory, in the format
+    /// `--data-dir` reads: the twin on it, with the hidden effects, is the true model of
+    /// the bench where the twin's physics describes it (for judging only).
+    #[arg(long, value_name = "DIR")]
+    pub write_data: Option<PathBuf>,
+
     /// Measurement noise: `default`, `none` (exact model values) or a TOML file
     /// (format: workbench/examples/noise.toml).
     #[arg(long, value_name = "default|none|FILE.toml", default_value = "default", value_parser = parse_noise)]
@@ -141,6 +148,8 @@ pub struct Benched {
     pub measurement: Measurement,
     /// `(path, TOML)` of the truth file, with `--scenario`.
     pub truth: Option<(PathBuf, String)>,
+    /// The bench's model data (`--write-data`): the run's, perturbed when asked.
+    pub data: Arc<ModelData>,
 }
 
 /// The effect file (any of the three vocabularies) and the run it goes into; the
@@ -264,6 +273,10 @@ pub fn bench(args: &BenchArgs) -> Result<Benched, CmdError> {
     )?;
     let perturb_seed = scenario.as_ref().map_or(args.perturb_maps, |s| s.perturb_maps);
     let perturbation = bench_data(&mut spec, &run_args, perturb_seed)?;
+    let data = match &spec.data {
+        Some(d) => Arc::clone(d),
+        None => Arc::new(ModelData::builtin().map_err(|e| CmdError::Runtime(format!("built-in data: {e}")))?),
+    };
     let maps = match &spec.data {
         Some(d) => d.maps().map_err(|e| CmdError::Usage(format!("--data-dir: {e}")))?,
         None => Maps::builtin(),
@@ -286,7 +299,7 @@ pub fn bench(args: &BenchArgs) -> Result<Benched, CmdError> {
         None => None,
     };
     let measurement = run.record(exact, &args.run.out);
-    Ok(Benched { measurement, truth })
+    Ok(Benched { measurement, truth, data })
 }
 
 /// Bytes a bench row takes in the file: 141 measured (CSV, 17 channels), rounded up.
@@ -319,8 +332,20 @@ pub fn execute(args: &BenchArgs) -> Result<(), CmdError> {
             return Err(CmdError::Usage(format!("--truth {}: the same file as --out", truth.display())));
         }
     }
-    let Benched { measurement: m, truth } = bench(args)?;
+    if let Some(dir) = &args.write_data {
+        inputs.check_dir("--write-data", dir).map_err(CmdError::Usage)?;
+        if dir.is_file() {
+            return Err(CmdError::Usage(format!(
+                "--write-data {}: a file, expected a directory",
+                dir.display()
+            )));
+        }
+    }
+    let Benched { measurement: m, truth, data } = bench(args)?;
     save(out, &m).map_err(|e| CmdError::Runtime(format!("{}: cannot write: {e}", out.display())))?;
+    if let Some(dir) = &args.write_data {
+        data.write(dir).map_err(|e| CmdError::Runtime(format!("--write-data {}: {e}", dir.display())))?;
+    }
     if let Some((path, text)) = &truth {
         write_atomic(path, |w| w.write_all(text.as_bytes()))
             .map_err(|e| CmdError::Runtime(format!("{}: cannot write: {e}", path.display())))?;
@@ -336,6 +361,9 @@ pub fn execute(args: &BenchArgs) -> Result<(), CmdError> {
         );
         if let Some((path, _)) = &truth {
             println!("wrote {}: the scenario's truth (what is hidden; for judging only)", path.display());
+        }
+        if let Some(dir) = &args.write_data {
+            println!("wrote {}: the bench's model data (for judging only)", dir.display());
         }
     }
     Ok(())

@@ -403,6 +403,26 @@ fn perturbed_maps_change_the_bench_reproducibly() {
 }
 
 #[test]
+fn written_bench_data_is_the_bench_s_model() {
+    let d = tempfile::tempdir().unwrap();
+    let (o, dir) = (d.path().join("m.csv"), d.path().join("truth-data"));
+    let (o, dir) = (o.to_str().unwrap(), dir.to_str().unwrap());
+    let run = |extra: &[&str]| {
+        let mut a = vec!["--plant", "twin", "--profile", "TP12", "--noise", "none", "-q", "--out", o];
+        a.extend(extra);
+        execute(&args(&a)).unwrap();
+        load(Path::new(o), None).unwrap().signals
+    };
+    let perturbed = run(&["--perturb-maps", "7", "--write-data", dir]);
+    // The twin on the written files makes the perturbed bench's run, bit for bit.
+    assert_eq!(run(&["--data-dir", dir]), perturbed);
+    assert_ne!(run(&[]), perturbed, "the written data is not the identified data");
+    let over = args(&["--profile", "TP12", "-q", "--out", o, "--data-dir", dir, "--write-data", dir]);
+    let err = execute(&over).unwrap_err().to_string();
+    assert!(err.contains("--write-data"), "the data it reads is not written over: {err}");
+}
+
+#[test]
 fn scenarios_are_reproducible_and_keep_their_truth_apart() {
     let d = tempfile::tempdir().unwrap();
     let out = d.path().join("case.csv");
