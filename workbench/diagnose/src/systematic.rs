@@ -418,7 +418,7 @@ fn data_std(
 /// difference apart — pinning the map's scale, and the effect's σ, at nothing (the
 /// friction scale of `diagnose_cli::hidden_axle_friction_is_named_and_its_effect_file_closes_the_gap`
 /// is 99 % its map's scale and read σ 0.0015 without this). ASSUMED: 0.9.
-const ALIASED: f64 = 0.9;
+pub(super) const ALIASED: f64 = 0.9;
 
 /// The weighted normal equations of the determined parameters `ix` and the `live` items
 /// together (without the items' prior): the parameters' block `g` (`k x k`), the

@@ -668,7 +668,7 @@ fn select(
     if let Some((stage, at, intervals)) = last.filter(|_| !credits.set.is_empty()) {
         credits.after_set = stage.energies(&at.r);
         credits.with_set = Some((stage.data(&at.x), stage.effects(&at.x)));
-        credit::set_intervals(&mut credits.set, &stage.free, &intervals);
+        credit::set_intervals(&mut credits.set, &stage.free, &stage.reported(&at, &intervals));
     }
     Ok(())
 }

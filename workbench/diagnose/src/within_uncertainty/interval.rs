@@ -13,6 +13,7 @@
 use super::{Point, Problem, Unknown};
 use crate::library::current_value;
 use crate::linalg::solve_spd;
+use crate::systematic::ALIASED;
 use crate::uncertainty::{fold_jackknife_std, misfit_factor};
 
 impl Problem<'_> {
@@ -50,6 +51,45 @@ impl Problem<'_> {
         Some(intervals.collect())
     }
 
+    /// The set's `intervals` at the refit `at` as reported: each widened (in quadrature,
+    /// on each side) by [`Problem::aliased_std`]. Reported only: which members stand is
+    /// decided on the posterior ([`Problem::unsupported`]).
+    pub(super) fn reported(&self, at: &Point, intervals: &[[f64; 2]]) -> Vec<[f64; 2]> {
+        let Some(sd) = self.aliased_std(at) else { return intervals.to_vec() };
+        let values = self.values(&at.x);
+        let each = self.free.iter().zip(values.iter().zip(intervals)).zip(&sd);
+        let widened = each.map(|(((s, _), (v, [lo, hi])), sd)| {
+            let by = 1.96 * sd * s.delta;
+            [(v - (v - lo).hypot(by)).max(s.lower), (v + (hi - v).hypot(by)).min(s.upper)]
+        });
+        widened.collect()
+    }
+
+    /// Per free parameter, the σ [its `delta`s] the maps' and parameters' unknowns it
+    /// cannot be told from move it by: each unknown whose response lies at least
+    /// [`ALIASED`] (in weighted energy) in the set's own responses is taken at its prior
+    /// (one σ), the set's parameters following (`G⁻¹ c`, the set's normal matrix without
+    /// the maps). The posterior pins such an unknown by what its response differs in (the
+    /// model's curvature), which a model wrong elsewhere also moves: the ordinary
+    /// diagnosis' rule for the maps' items ([`crate::systematic`]). `None` where the set's
+    /// normal equations cannot be solved.
+    fn aliased_std(&self, at: &Point) -> Option<Vec<f64>> {
+        let n = self.unknowns.len();
+        let own: Vec<usize> = (0..n).filter(|&i| matches!(self.unknowns[i], Unknown::Effect(_))).collect();
+        let k = own.len();
+        let mut g = vec![0.0; k * k];
+        for (a, &i) in own.iter().enumerate() {
+            for (b, &j) in own.iter().enumerate() {
+                g[a * k + b] = self.dot(&at.jacobian[i], &at.jacobian[j]);
+            }
+        }
+        let others = (0..n).filter(|i| !own.contains(i)).map(|m| {
+            let col = &at.jacobian[m];
+            (own.iter().map(|&i| self.dot(&at.jacobian[i], col)).collect(), self.dot(col, col))
+        });
+        aliased_var(&g, k, others).map(|v| v.into_iter().map(f64::sqrt).collect())
+    }
+
     /// The member of the set the runs tell least from absent, if they cannot tell it at
     /// all: every one of its parameters' 95 % `intervals` at the refit's `values` (in the
     /// order of [`Problem::free`]) holds the model's value. Least: the smallest largest
@@ -77,5 +117,59 @@ impl Problem<'_> {
         };
         let least = causes.into_iter().filter(held).min_by(|a, b| depth(a).total_cmp(&depth(b)));
         least.map(str::to_string)
+    }
+}
+
+/// The variance each of `k` parameters (their normal matrix `g`, `k x k`, without a prior)
+/// gets from the unknowns `others` at one σ each (each: its responses' products with the
+/// parameters', `c`, and its own weighted energy) whose response lies at least
+/// [`ALIASED`] in the parameters' (`c' g⁻¹ c ≥ ALIASED` of its energy): `Σ (g⁻¹ c)²`.
+/// `None` where `g` cannot be solved.
+fn aliased_var(g: &[f64], k: usize, others: impl Iterator<Item = (Vec<f64>, f64)>) -> Option<Vec<f64>> {
+    // Conditioning only, as the refit's normal matrix: a parameter the run does not excite.
+    let mut g = g.to_vec();
+    for a in 0..k {
+        g[a * k + a] += 1e-9 * g[a * k + a].max(1e-12);
+    }
+    let mut var = vec![0.0; k];
+    for (c, energy) in others {
+        let a = solve_spd(&g, &c, 1e-12)?;
+        let along: f64 = a.iter().zip(&c).map(|(x, y)| x * y).sum();
+        if energy > 0.0 && along >= ALIASED * energy {
+            var.iter_mut().zip(&a).for_each(|(v, x)| *v += x * x);
+        }
+    }
+    Some(var)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Products of columns over 100 samples.
+    fn dot(x: &[f64], y: &[f64]) -> f64 {
+        x.iter().zip(y).map(|(a, b)| a * b).sum()
+    }
+
+    /// One parameter whose response is a ramp. An unknown whose response is 0.8 of the
+    /// ramp plus a little of its own moves it by 0.8 per σ; one mostly its own shape, or
+    /// orthogonal to the ramp, is told apart by the run and moves nothing.
+    #[test]
+    fn only_an_unknown_the_run_cannot_tell_from_the_parameter_moves_it() {
+        let t: Vec<f64> = (0..100).map(|i| i as f64 / 100.0).collect();
+        let wiggle: Vec<f64> = (0..100).map(|i| if i % 2 == 0 { 1.0 } else { -1.0 }).collect();
+        let mix =
+            |a: f64, b: f64| -> Vec<f64> { t.iter().zip(&wiggle).map(|(x, w)| a * x + b * w).collect() };
+        let g = [dot(&t, &t)];
+        let column = |c: &[f64]| (vec![dot(&t, c)], dot(c, c));
+        let aliased = mix(0.8, 0.01);
+        let own_shape = mix(0.2, 0.3);
+        let var =
+            aliased_var(&g, 1, [column(&aliased), column(&own_shape), column(&wiggle)].into_iter()).unwrap();
+        let a = dot(&t, &aliased) / dot(&t, &t);
+        assert!((var[0] - a * a).abs() < 1e-6 * a * a, "{} for {}", var[0], a * a);
+        assert!((a - 0.8).abs() < 0.02, "{a}");
+        let none = aliased_var(&g, 1, [column(&own_shape), column(&wiggle)].into_iter()).unwrap();
+        assert_eq!(none, [0.0]);
     }
 }
