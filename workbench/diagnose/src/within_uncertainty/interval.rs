@@ -8,7 +8,8 @@
 //! a single run — left out in turn, the maps re-estimated on what is kept, one
 //! Gauss–Newton step from the refit, no simulation). Both widened by what the fit leaves
 //! above the noise (the Birge ratio) and by a parameter's quantisation and the twin's
-//! step bias.
+//! step bias. As reported, also by the maps' unknowns the run cannot tell from a member
+//! ([`Problem::reported`]); the set's own tests read the posterior alone.
 
 use super::{Point, Problem, Unknown};
 use crate::library::current_value;
