@@ -148,8 +148,9 @@ pub struct Benched {
     pub measurement: Measurement,
     /// `(path, TOML)` of the truth file, with `--scenario`.
     pub truth: Option<(PathBuf, String)>,
-    /// The bench's model data (`--write-data`): the run's, perturbed when asked.
-    pub data: Arc<ModelData>,
+    /// The bench's model data (`--write-data`): the run's, perturbed when asked; `None`:
+    /// the built-in data (loaded only when written).
+    pub data: Option<Arc<ModelData>>,
 }
 
 /// The effect file (any of the three vocabularies) and the run it goes into; the
@@ -273,10 +274,7 @@ pub fn bench(args: &BenchArgs) -> Result<Benched, CmdError> {
     )?;
     let perturb_seed = scenario.as_ref().map_or(args.perturb_maps, |s| s.perturb_maps);
     let perturbation = bench_data(&mut spec, &run_args, perturb_seed)?;
-    let data = match &spec.data {
-        Some(d) => Arc::clone(d),
-        None => Arc::new(ModelData::builtin().map_err(|e| CmdError::Runtime(format!("built-in data: {e}")))?),
-    };
+    let data = spec.data.clone();
     let maps = match &spec.data {
         Some(d) => d.maps().map_err(|e| CmdError::Usage(format!("--data-dir: {e}")))?,
         None => Maps::builtin(),
@@ -334,17 +332,13 @@ pub fn execute(args: &BenchArgs) -> Result<(), CmdError> {
     }
     if let Some(dir) = &args.write_data {
         inputs.check_dir("--write-data", dir).map_err(CmdError::Usage)?;
-        if dir.is_file() {
-            return Err(CmdError::Usage(format!(
-                "--write-data {}: a file, expected a directory",
-                dir.display()
-            )));
-        }
     }
     let Benched { measurement: m, truth, data } = bench(args)?;
     save(out, &m).map_err(|e| CmdError::Runtime(format!("{}: cannot write: {e}", out.display())))?;
     if let Some(dir) = &args.write_data {
-        data.write(dir).map_err(|e| CmdError::Runtime(format!("--write-data {}: {e}", dir.display())))?;
+        let builtin = || ModelData::builtin().map(Arc::new).map_err(|e| format!("built-in data: {e}"));
+        let written = data.map_or_else(builtin, Ok).and_then(|d| d.write(dir).map_err(|e| e.to_string()));
+        written.map_err(|e| CmdError::Runtime(format!("--write-data {}: {e}", dir.display())))?;
     }
     if let Some((path, text)) = &truth {
         write_atomic(path, |w| w.write_all(text.as_bytes()))

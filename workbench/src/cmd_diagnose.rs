@@ -320,9 +320,6 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
     for (flag, dir) in [("--write-data", &args.write_data), ("--write-estimate", &args.write_estimate)] {
         let Some(dir) = dir else { continue };
         inputs.check_dir(flag, dir).map_err(CmdError::Usage)?;
-        if dir.is_file() {
-            return Err(CmdError::Usage(format!("{flag} {}: a file, expected a directory", dir.display())));
-        }
     }
     let load_opts = LoadOptions {
         mapping: args.mapping.as_deref().map(Mapping::load).transpose()?,

@@ -115,9 +115,6 @@ pub fn execute(args: &IdentifyArgs) -> Result<(), CmdError> {
         .file("--mapping", a.mapping.as_deref())
         .dir("--data-dir", a.data_dir.as_deref());
     inputs.check_dir("--out", &a.out).map_err(CmdError::Usage)?;
-    if a.out.is_file() {
-        return Err(CmdError::Usage(format!("--out {}: is a file; expected a directory", a.out.display())));
-    }
     let base = match &a.data_dir {
         Some(d) => ModelData::load(d)?,
         None => ModelData::builtin()?,

@@ -106,10 +106,14 @@ impl Inputs {
         }
     }
 
-    /// Refuse output directory `dir` (named by `what`) if the command could overwrite an
-    /// input in it: an input directly in `dir` or in `dir/profiles`, or `dir` itself.
+    /// Refuse output directory `dir` (named by `what`) if it is a file, or if the command
+    /// could overwrite an input in it: an input directly in `dir` or in `dir/profiles`, or
+    /// `dir` itself.
     pub fn check_dir(&self, what: &str, dir: &Path) -> Result<(), String> {
         self.check(what, dir)?;
+        if dir.is_file() {
+            return Err(format!("{what} {}: a file, expected a directory", dir.display()));
+        }
         for d in [dir.to_path_buf(), dir.join("profiles")] {
             let Some(id) = id_of(&d) else { continue };
             if let Some(i) = self.files.iter().find(|i| i.parent.as_ref() == Some(&id)) {
@@ -176,5 +180,7 @@ mod tests {
         let inputs = Inputs::new().files("a run", [runs.join("speed_map_fwd.csv")].iter());
         assert!(inputs.check_dir("--out", &runs).is_err());
         assert!(inputs.check_dir("--out", d.path()).is_ok());
+        let e = Inputs::new().check_dir("--out", &runs.join("speed_map_fwd.csv")).unwrap_err();
+        assert!(e.contains("a file, expected a directory"), "{e}");
     }
 }
