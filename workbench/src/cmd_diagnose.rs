@@ -79,7 +79,8 @@ How the diagnosis works:
   data's own uncertainty can explain, or not. It takes up what a missing effect shares with a map's
   error, so beside it each library cause is credited by what it removes beyond it
   (confirmed on the simulator). The set starts from the verdict's causes, refitted with
-  the maps from the identified data (dropped only where the refit no longer needs them);
+  the maps from the identified data (dropped only where the refit no longer needs them
+  and the model without them leaves no located structure on their channels);
   then the best credited cause is taken — or another of its round's confirmed causes
   whose refit fits better — and the maps estimated again from the identified data with
   it, until no cause adds more (at most four); one whose value drifts beside the
@@ -764,6 +765,12 @@ fn render_credits(e: &diagnose::Estimate, ranked: &[&str]) -> String {
         o.push_str(&format!(
             "  taken and dropped again (a later refit did not need them): {}\n",
             e.dropped.join(", ")
+        ));
+    }
+    if !e.located.is_empty() {
+        o.push_str(&format!(
+            "  kept although the refit needed them less than the bar (without them the model leaves located structure on their channels): {}\n",
+            e.located.join(", ")
         ));
     }
     for (cause, why) in &e.drifting {

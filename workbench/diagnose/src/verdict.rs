@@ -440,7 +440,12 @@ pub(super) fn structure_in(
 /// Per channel, the structure tests of `sim`'s residual on the fit samples (`dt` [s]
 /// apart), with the current model's mains lines ([`Prepared::lines`]) and, where the
 /// sensor's noise is stated, each run's test of its fast part ([`structure::fast_excess`]).
-fn windows_in(p: &Prepared, resolution: &[f64], dt: f64, sim: &[Vec<f32>]) -> Vec<Vec<structure::Window>> {
+pub(super) fn windows_in(
+    p: &Prepared,
+    resolution: &[f64],
+    dt: f64,
+    sim: &[Vec<f32>],
+) -> Vec<Vec<structure::Window>> {
     let runs = p.run_ranges();
     p.meas
         .iter()

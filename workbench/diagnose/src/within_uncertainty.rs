@@ -25,6 +25,7 @@ use simrod_io::map_uncertainty::Uncertainty;
 mod credit;
 mod drift;
 mod interval;
+mod located;
 mod settling;
 
 pub use credit::Credit;
@@ -96,6 +97,9 @@ pub struct Estimate {
     pub provisional: Vec<Credit>,
     /// Causes taken and then dropped: a later refit no longer needed them.
     pub dropped: Vec<String>,
+    /// Members the refit needed less than the material bar, kept because the model
+    /// without them leaves located structure (a channel's time span) they clear.
+    pub located: Vec<String>,
     /// Causes taken and then replaced: the set refitted with a rival of the same round in
     /// their place fit better (lower penalised energy). Each: the cause, its rival.
     pub lost_to: Vec<(String, String)>,
@@ -641,7 +645,8 @@ fn select(
             }
             let verdict: Vec<&str> =
                 credits.set.iter().filter(|c| c.verdict).map(|c| c.cause.as_str()).collect();
-            let (drop, intervals) = stage.needless(&refit.best, &values, &verdict)?;
+            let (drop, intervals, located) = stage.needless(&refit.best, &values, &verdict)?;
+            credits.located.extend(located.filter(|c| !credits.located.contains(c)));
             let Some((cause, drifts)) = drop else {
                 settled = credits.set.clone();
                 let taken: Vec<&str> = taken.iter().map(String::as_str).collect();
@@ -656,8 +661,7 @@ fn select(
                 Some(why) => credits.drifting.push((cause.clone(), why)),
                 None => credits.dropped.push(cause.clone()),
             }
-            let kept = stage.free.iter().zip(values).filter(|((s, _), _)| s.cause != cause);
-            free = kept.map(|((s, _), v)| (s.clone(), v)).collect();
+            free = stage.free_without(&values, &cause);
             if free.is_empty() {
                 let open = |p: &credit::Pick| !p.free.iter().any(|(s, _)| gone_with(s, &taken, &chains));
                 picks = std::mem::take(&mut fallback).into_iter().filter(open).collect();
@@ -684,27 +688,40 @@ fn gone_with(s: &ParamSpec, taken: &[String], chains: &[&str]) -> bool {
     taken.iter().any(|t| t == s.cause) || (s.is_chain() && chains.contains(&s.param))
 }
 
-/// A member to drop with why where it drifts, and the set's 95 % intervals.
-type Needless = (Option<(String, Option<String>)>, Vec<[f64; 2]>);
+/// A member to drop with why where it drifts, the set's 95 % intervals, and the member
+/// the refit needs least kept for the located structure it clears.
+type Needless = (Option<(String, Option<String>)>, Vec<[f64; 2]>, Option<String>);
 
 impl Problem<'_> {
     /// A member of the set to drop, if any, with why where it drifts (`None`: the refit
     /// does not need it), and the 95 % intervals at the settled refit `at` (`values`: the
     /// free parameters there): one the refit needs least ([`Problem::redundant`]; then no
-    /// intervals, a fold jackknife), else one the runs cannot tell from absent
-    /// ([`Problem::unsupported`]) or whose value drifts ([`Problem::drifting`]), neither
-    /// among the verdict's `kept`.
+    /// intervals, a fold jackknife) unless it clears located structure
+    /// ([`Problem::clears_located`]: then it is kept and named), else one the runs cannot
+    /// tell from absent ([`Problem::unsupported`]) or whose value drifts
+    /// ([`Problem::drifting`]), neither among the verdict's `kept`.
     fn needless(&self, at: &Point, values: &[f64], kept: &[&str]) -> Result<Needless, String> {
         let g = self.gram(&at.jacobian, &at.x);
+        let mut located = None;
         if let Some(cause) = self.redundant(at, &g)? {
-            return Ok((Some((cause, None)), Vec::new()));
+            let without = self.with_free(self.free_without(values, &cause));
+            if !self.clears_located(at, &cause, &without)? {
+                return Ok((Some((cause, None)), Vec::new(), None));
+            }
+            located = Some(cause);
         }
         let iv = self.intervals(at, &g).ok_or("the set's normal equations are singular")?;
         let drop = match self.unsupported(values, &iv, kept) {
             Some(cause) => Some((cause, None)),
             None => self.drifting(at, kept)?.map(|(c, why)| (c, Some(why))),
         };
-        Ok((drop, iv))
+        Ok((drop, iv, located))
+    }
+
+    /// The free library parameters without `cause`'s, each from its value in `values`.
+    fn free_without(&self, values: &[f64], cause: &str) -> Vec<(ParamSpec, f64)> {
+        let kept = self.free.iter().zip(values).filter(|((s, _), _)| s.cause != cause);
+        kept.map(|((s, _), v)| (s.clone(), *v)).collect()
     }
 }
 
@@ -830,6 +847,7 @@ fn summarise(pb: &Problem, fit: &Fit, credits: credit::Credits) -> Estimate {
         after_set: credits.after_set,
         provisional: credits.provisional,
         dropped: credits.dropped,
+        located: credits.located,
         lost_to: credits.lost_to,
         drifting: credits.drifting,
         bar: pb.bar,

@@ -76,6 +76,9 @@ pub(super) struct Credits {
     pub provisional: Vec<Credit>,
     /// Causes taken and then dropped: a later refit no longer needed them.
     pub dropped: Vec<String>,
+    /// Members the refit needed less than the bar, kept for the located structure the
+    /// model without them leaves on their channels.
+    pub located: Vec<String>,
     /// Causes taken and then replaced by a rival of their round whose refit fit better:
     /// the cause, the rival.
     pub lost_to: Vec<(String, String)>,
