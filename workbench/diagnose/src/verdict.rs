@@ -782,7 +782,7 @@ fn local_structure(ratio: f64, st: &Structure) -> String {
 /// "missing effect: …", with its confounded group and the run that separates them, if a
 /// built-in profile does (its cosine below `separates`).
 fn missing(l: &Candidate, red_a: f64, group: Option<&ConfoundedGroup>, separates: f64) -> String {
-    let group = group.map(|g| confounded_text(g, separates));
+    let group = group.map(|g| confounded_text(g, l.effect, separates));
     format!(
         "missing effect: {}, removes {:.0} % of the error above noise on the channels it acts on and leaves a noise-like residual{}",
         describe(l),
@@ -795,15 +795,17 @@ fn missing(l: &Candidate, red_a: f64, group: Option<&ConfoundedGroup>, separates
 /// ("partly explained: X — confounded with Y …, removes …"): a partial proposal is as
 /// much a coin toss between look-alikes as a full one, and the user must be told.
 fn confounded_with(l: &Candidate, group: Option<&ConfoundedGroup>, separates: f64) -> String {
-    match group.filter(|g| g.effects.first() == Some(&l.effect)) {
-        Some(g) => format!("{},", confounded_text(g, separates)),
+    match group.filter(|g| g.effects.contains(&l.effect)) {
+        Some(g) => format!("{},", confounded_text(g, l.effect, separates)),
         None => String::new(),
     }
 }
 
 /// " — confounded with B on this run (cosine c); run P to separate them (cosine c')",
-/// or that no built-in profile does (its cosine not below `separates`).
-fn confounded_text(g: &ConfoundedGroup, separates: f64) -> String {
+/// or that no built-in profile does (its cosine not below `separates`); B: the group's
+/// effects but the one `named` (the verdict may name a member other than the group's
+/// lead: a delay for the lag it resembles).
+fn confounded_text(g: &ConfoundedGroup, named: &str, separates: f64) -> String {
     let sep = g.separating_profile.as_ref().map(|(pr, cos)| {
         if *cos < separates {
             format!("; run {pr} to separate them (cosine {cos:.2})")
@@ -813,7 +815,7 @@ fn confounded_text(g: &ConfoundedGroup, separates: f64) -> String {
     });
     format!(
         " — confounded with {} on this run (cosine {:.2}){}",
-        g.effects.get(1..).unwrap_or_default().join(", "),
+        g.effects.iter().filter(|e| **e != named).copied().collect::<Vec<_>>().join(", "),
         g.cosine,
         sep.unwrap_or_default()
     )
@@ -1037,6 +1039,22 @@ mod tests {
         assert!(unseparated.contains("no built-in profile separates them"), "{unseparated}");
         assert_eq!(confounded_with(&lead, Some(&group("controller_delay", 0.97)), 0.98), "");
         assert_eq!(confounded_with(&lead, None, 0.98), "");
+    }
+
+    /// A verdict naming the group's second member (a delay chosen over the lag that leads
+    /// the group) says it is confounded with the lag, not with itself (proof 32's
+    /// 1,009,009 said "sensor_delay.c_kistler_l … confounded with sensor_delay.c_kistler_l").
+    #[test]
+    fn a_missing_member_is_said_confounded_with_the_others_not_itself() {
+        let delay = Candidate { significant: true, ..Candidate::named("sensor_delay.c_kistler_l", 1.0) };
+        let g = ConfoundedGroup {
+            effects: vec!["sensor_lag.c_kistler_l", "sensor_delay.c_kistler_l"],
+            cosine: 0.99,
+            separating_profile: None,
+        };
+        let said = missing(&delay, 1.0, Some(&g), 0.98);
+        assert!(said.contains("confounded with sensor_lag.c_kistler_l on this run"), "{said}");
+        assert!(!said.contains("confounded with sensor_delay"), "{said}");
     }
 
     /// A physical candidate that removes most of V_DC's error but makes I_DC 1.2x worse
