@@ -99,7 +99,12 @@ fn moved_channels(s: &Sensitivities, channels: &[Channel], ix: &[usize]) -> Vec<
 
 /// Indices of the channels [`moved_channels`] names.
 fn moved(s: &Sensitivities, ix: &[usize]) -> Vec<usize> {
-    let per = per_channel(s, ix);
+    moved_of(&per_channel(s, ix))
+}
+
+/// Indices of the channels carrying at least [`MOVES_SHARE`] of a cause's weighted
+/// sensitivity `per` channel: what it moves.
+pub(super) fn moved_of(per: &[f64]) -> Vec<usize> {
     let total: f64 = per.iter().sum();
     if total.is_nan() || total <= 0.0 {
         return Vec::new();

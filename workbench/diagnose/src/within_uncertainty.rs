@@ -625,8 +625,13 @@ fn select(
         taken.extend(newest.iter().cloned());
         credits.set.extend(next.credits);
         let mut free = next.free;
+        // The refit without a member just dropped, made by the located test.
+        let mut ready: Option<(Problem, Fit)> = None;
         loop {
-            let (stage, refit, won) = refitted(pb, free, std::mem::take(&mut rivals))?;
+            let (stage, refit, won) = match ready.take() {
+                Some((stage, refit)) => (stage, refit, None),
+                None => refitted(pb, free, std::mem::take(&mut rivals))?,
+            };
             if let Some(won) = won {
                 let names: Vec<String> = won.iter().map(|c| c.cause.clone()).collect();
                 credits.lost_to.extend(newest.iter().map(|c| (c.clone(), names.join(" + "))));
@@ -645,13 +650,13 @@ fn select(
             }
             let verdict: Vec<&str> =
                 credits.set.iter().filter(|c| c.verdict).map(|c| c.cause.as_str()).collect();
-            let (drop, intervals, located) = stage.needless(&refit.best, &values, &verdict)?;
-            credits.located.extend(located.filter(|c| !credits.located.contains(c)));
-            let Some((cause, drifts)) = drop else {
+            let found = stage.needless(&refit.best, &values, &verdict)?;
+            credits.located.extend(found.located.filter(|c| !credits.located.contains(c)));
+            let Some((cause, drifts)) = found.drop else {
                 settled = credits.set.clone();
                 let taken: Vec<&str> = taken.iter().map(String::as_str).collect();
                 picks = credit::round(&stage, &refit.best, &taken, false)?.1;
-                last = Some((stage, refit.best, intervals));
+                last = Some((stage, refit.best, found.intervals));
                 break;
             };
             credits.set.retain(|c| c.cause != cause);
@@ -662,6 +667,7 @@ fn select(
                 None => credits.dropped.push(cause.clone()),
             }
             free = stage.free_without(&values, &cause);
+            ready = found.without;
             if free.is_empty() {
                 let open = |p: &credit::Pick| !p.free.iter().any(|(s, _)| gone_with(s, &taken, &chains));
                 picks = std::mem::take(&mut fallback).into_iter().filter(open).collect();
@@ -688,34 +694,43 @@ fn gone_with(s: &ParamSpec, taken: &[String], chains: &[&str]) -> bool {
     taken.iter().any(|t| t == s.cause) || (s.is_chain() && chains.contains(&s.param))
 }
 
-/// A member to drop with why where it drifts, the set's 95 % intervals, and the member
-/// the refit needs least kept for the located structure it clears.
-type Needless = (Option<(String, Option<String>)>, Vec<[f64; 2]>, Option<String>);
+/// What [`Problem::needless`] finds at a settled refit.
+struct Needless<'a> {
+    /// A member to drop, with why where it drifts.
+    drop: Option<(String, Option<String>)>,
+    /// The set's 95 % intervals (empty where the refit no longer needs a member).
+    intervals: Vec<[f64; 2]>,
+    /// The member the refit needs least, kept for the located structure it clears.
+    located: Option<String>,
+    /// The set refitted without the member the refit no longer needs, where dropped.
+    without: Option<(Problem<'a>, Fit)>,
+}
 
-impl Problem<'_> {
+impl<'a> Problem<'a> {
     /// A member of the set to drop, if any, with why where it drifts (`None`: the refit
     /// does not need it), and the 95 % intervals at the settled refit `at` (`values`: the
     /// free parameters there): one the refit needs least ([`Problem::redundant`]; then no
-    /// intervals, a fold jackknife) unless it clears located structure
-    /// ([`Problem::clears_located`]: then it is kept and named), else one the runs cannot
-    /// tell from absent ([`Problem::unsupported`]) or whose value drifts
+    /// intervals, a fold jackknife, and the refit without it) unless it clears located
+    /// structure ([`Problem::without_located`]: then it is kept and named), else one the
+    /// runs cannot tell from absent ([`Problem::unsupported`]) or whose value drifts
     /// ([`Problem::drifting`]), neither among the verdict's `kept`.
-    fn needless(&self, at: &Point, values: &[f64], kept: &[&str]) -> Result<Needless, String> {
+    fn needless(&self, at: &Point, values: &[f64], kept: &[&str]) -> Result<Needless<'a>, String> {
         let g = self.gram(&at.jacobian, &at.x);
         let mut located = None;
         if let Some(cause) = self.redundant(at, &g)? {
-            let without = self.with_free(self.free_without(values, &cause));
-            if !self.clears_located(at, &cause, &without)? {
-                return Ok((Some((cause, None)), Vec::new(), None));
+            let (pb, fit, clears) = self.without_located(at, values, &cause)?;
+            if !clears {
+                let (drop, without) = (Some((cause, None)), Some((pb, fit)));
+                return Ok(Needless { drop, intervals: Vec::new(), located: None, without });
             }
             located = Some(cause);
         }
-        let iv = self.intervals(at, &g).ok_or("the set's normal equations are singular")?;
-        let drop = match self.unsupported(values, &iv, kept) {
+        let intervals = self.intervals(at, &g).ok_or("the set's normal equations are singular")?;
+        let drop = match self.unsupported(values, &intervals, kept) {
             Some(cause) => Some((cause, None)),
             None => self.drifting(at, kept)?.map(|(c, why)| (c, Some(why))),
         };
-        Ok((drop, iv, located))
+        Ok(Needless { drop, intervals, located, without: None })
     }
 
     /// The free library parameters without `cause`'s, each from its value in `values`.

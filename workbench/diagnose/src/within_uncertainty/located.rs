@@ -12,35 +12,38 @@
 
 use std::sync::Arc;
 
-use super::{Point, Problem};
-use crate::engine::MOVES_SHARE;
+use super::{Fit, Point, Problem};
 use crate::preparation::flagged_windows;
+use crate::selection::moved_of;
 use crate::verdict::windows_in;
 
-impl Problem<'_> {
-    /// Whether the set's refit at `with` clears structure the refit without `cause`
-    /// (`without`, a problem whose free parameters lack it, fitted here) leaves on a
-    /// channel the cause moves: then the member is needed whatever its energy.
-    pub(super) fn clears_located(
+impl<'a> Problem<'a> {
+    /// The set refitted without `cause` (its other free parameters from `values`, the
+    /// maps from the identified data), and whether the set's refit at `with` clears
+    /// structure that one leaves on a channel the cause moves: then the member is needed
+    /// whatever its energy. The refit is returned for the selection to go on from where
+    /// the member is dropped.
+    pub(super) fn without_located(
         &self,
         with: &Point,
+        values: &[f64],
         cause: &str,
-        without: &Problem,
-    ) -> Result<bool, String> {
-        let mine = self.moved_by(with, cause);
+    ) -> Result<(Problem<'a>, Fit, bool), String> {
+        let without = self.with_free(self.free_without(values, cause));
         let fit = without.fit(vec![0.0; without.unknowns.len()])?;
+        let mine = self.moved_by(with, cause);
         let on_mine = |pb: &Problem, x: &[f64]| -> Result<bool, String> {
             let sim = pb.twin.run_data(&Arc::new(pb.data(x)), &pb.effects(x), pb.p.stride)?;
             let dt = pb.twin.dt_s() * pb.p.stride as f64;
             let windows = windows_in(pb.p, &pb.twin.resolution(), dt, &sim);
             Ok(flagged_windows(&windows).iter().any(|(c, _)| mine.contains(c)))
         };
-        Ok(on_mine(without, &fit.best.x)? && !on_mine(self, &with.x)?)
+        let clears = on_mine(&without, &fit.best.x)? && !on_mine(self, &with.x)?;
+        Ok((without, fit, clears))
     }
 
-    /// The channels carrying at least [`MOVES_SHARE`] of `cause`'s weighted response at
-    /// `at` (its free parameters' Jacobian columns), the verdict's rule for what a cause
-    /// moves.
+    /// The channels `cause` moves at `at` ([`moved_of`], the verdict's rule) by its free
+    /// parameters' weighted Jacobian columns.
     fn moved_by(&self, at: &Point, cause: &str) -> Vec<usize> {
         let first = self.unknowns.len() - self.free.len();
         let own = (0..self.free.len()).filter(|&k| self.free[k].0.cause == cause);
@@ -50,7 +53,6 @@ impl Problem<'_> {
                 *p += jc.iter().zip(wc).map(|(j, q)| q * j * j).sum::<f64>();
             }
         }
-        let total: f64 = per.iter().sum();
-        (0..per.len()).filter(|&c| total > 0.0 && per[c] >= MOVES_SHARE * total).collect()
+        moved_of(&per)
     }
 }
