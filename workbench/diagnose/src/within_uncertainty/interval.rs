@@ -14,8 +14,20 @@
 use super::{Point, Problem, Unknown};
 use crate::library::current_value;
 use crate::linalg::solve_spd;
-use crate::systematic::ALIASED;
 use crate::uncertainty::{fold_jackknife_std, misfit_factor};
+
+/// Share of an unknown's response (weighted energy) in the set's own responses above
+/// which the reported intervals take the unknown at its prior ([`Problem::reported`]).
+/// The ordinary diagnosis' [`crate::systematic::ALIASED`] (0.9) decides which items its
+/// fit leaves unestimated; here the maps are estimated beside the set and the share only
+/// widens what is reported. At 0.9, three of the eight misses of proofs 31 and 32 (read
+/// since, as tuning cases) were set members beside perturbed maps trading with an unknown
+/// the run tells apart by a quarter of its response (ident.neutral_decel_hs_fwd_s: 74 %
+/// of it in inverter_rate_scale.decel_fwd's): decel_fwd 0.790 [0.785, 0.794] for 0.776
+/// (1,009,028), 0.719 [0.715, 0.723] for 0.710 (1,009,049); axle_friction_scale.left
+/// 1.472 [1.468, 1.476] for 1.308 (1,008,937). At 0.7 the three hold their truth, at
+/// ±0.036, ±0.035 and ±0.29. ASSUMED.
+pub(super) const TRADES: f64 = 0.7;
 
 impl Problem<'_> {
     /// Each free library parameter's 95 % interval `[lo, hi]` at the refit `at` (`g` its
@@ -68,12 +80,13 @@ impl Problem<'_> {
 
     /// Per free parameter, the σ [its `delta`s] the maps' and parameters' unknowns it
     /// cannot be told from move it by: each unknown whose response lies at least
-    /// [`ALIASED`] (in weighted energy) in the set's own responses is taken at its prior
+    /// [`TRADES`] (in weighted energy) in the set's own responses is taken at its prior
     /// (one σ), the set's parameters following (`G⁻¹ c`, the set's normal matrix without
     /// the maps). The posterior pins such an unknown by what its response differs in (the
     /// model's curvature), which a model wrong elsewhere also moves: the ordinary
-    /// diagnosis' rule for the maps' items ([`crate::systematic`]). `None` where the set's
-    /// normal equations cannot be solved.
+    /// diagnosis' rule for the maps' items ([`crate::systematic`]), there at a higher
+    /// share as it decides what the fit estimates. `None` where the set's normal equations
+    /// cannot be solved.
     fn aliased_std(&self, at: &Point) -> Option<Vec<f64>> {
         let n = self.unknowns.len();
         let own: Vec<usize> = (0..n).filter(|&i| matches!(self.unknowns[i], Unknown::Effect(_))).collect();
@@ -124,7 +137,7 @@ impl Problem<'_> {
 /// The variance each of `k` parameters (their normal matrix `g`, `k x k`, without a prior)
 /// gets from the unknowns `others` at one σ each (each: its responses' products with the
 /// parameters', `c`, and its own weighted energy) whose response lies at least
-/// [`ALIASED`] in the parameters' (`c' g⁻¹ c ≥ ALIASED` of its energy): `Σ (g⁻¹ c)²`.
+/// [`TRADES`] in the parameters' (`c' g⁻¹ c ≥ TRADES` of its energy): `Σ (g⁻¹ c)²`.
 /// `None` where `g` cannot be solved.
 fn aliased_var(g: &[f64], k: usize, others: impl Iterator<Item = (Vec<f64>, f64)>) -> Option<Vec<f64>> {
     // Conditioning only, as the refit's normal matrix: a parameter the run does not excite.
@@ -136,7 +149,7 @@ fn aliased_var(g: &[f64], k: usize, others: impl Iterator<Item = (Vec<f64>, f64)
     for (c, energy) in others {
         let a = solve_spd(&g, &c, 1e-12)?;
         let along: f64 = a.iter().zip(&c).map(|(x, y)| x * y).sum();
-        if energy > 0.0 && along >= ALIASED * energy {
+        if energy > 0.0 && along >= TRADES * energy {
             var.iter_mut().zip(&a).for_each(|(v, x)| *v += x * x);
         }
     }
@@ -153,8 +166,10 @@ mod tests {
     }
 
     /// One parameter whose response is a ramp. An unknown whose response is 0.8 of the
-    /// ramp plus a little of its own moves it by 0.8 per σ; one mostly its own shape, or
-    /// orthogonal to the ramp, is told apart by the run and moves nothing.
+    /// ramp plus a little of its own moves it by 0.8 per σ, and one with about three
+    /// quarters of its response in the ramp's (above [`TRADES`]) by its share; one mostly
+    /// its own shape, or orthogonal to the ramp, is told apart by the run and moves
+    /// nothing.
     #[test]
     fn only_an_unknown_the_run_cannot_tell_from_the_parameter_moves_it() {
         let t: Vec<f64> = (0..100).map(|i| i as f64 / 100.0).collect();
@@ -172,5 +187,12 @@ mod tests {
         assert!((a - 0.8).abs() < 0.02, "{a}");
         let none = aliased_var(&g, 1, [column(&own_shape), column(&wiggle)].into_iter()).unwrap();
         assert_eq!(none, [0.0]);
+        let quarter = mix(0.5, 0.17);
+        let (c, energy) = column(&quarter);
+        let share = c[0] * c[0] / g[0] / energy;
+        assert!(TRADES < share && share < 0.8, "{share}");
+        let var = aliased_var(&g, 1, [column(&quarter)].into_iter()).unwrap();
+        let a = c[0] / g[0];
+        assert!((var[0] - a * a).abs() < 1e-6 * a * a, "{} for {}", var[0], a * a);
     }
 }
