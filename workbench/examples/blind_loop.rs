@@ -44,7 +44,9 @@
 //!   effect on its own channel, [`claim_key`]: a gain on another channel is not it, and
 //!   is a claim the truth does not justify); the 95 % interval
 //!   stated beside the value that file holds (the last round naming it) holds the truth
-//!   (coverage, [`stated_interval`]). Found and coverage are also printed apart for the
+//!   (coverage, [`stated_interval`]; the found effects' other parameters, whose truth is
+//!   their neutral value, are printed apart and together with them, [`rest_covered`]).
+//!   Found and coverage are also printed apart for the
 //!   cases with the maps as identified and those with the maps perturbed: beside a wrong
 //!   map many effects are ones the maps' stated uncertainty could give, and an interval
 //!   holds that uncertainty, which only a perturbed map realises. Beside perturbed maps,
@@ -132,6 +134,8 @@ struct Outcome {
     library: Vec<Library>,
     /// Coverage of the truth by the 95 % interval: (inside, total).
     coverage: (usize, usize),
+    /// The same for the found effects' other parameters ([`rest_covered`]).
+    coverage_rest: (usize, usize),
     /// Effects found with no interval stated for them (not in [`Outcome::coverage`]).
     unstated: usize,
     rounds: usize,
@@ -829,6 +833,7 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         false_claim_strict,
         library,
         coverage,
+        coverage_rest: rest_covered(rounds, loop_.proposals_from, &c.scenario, &claimed),
         unstated,
         rounds: rounds.len(),
         empirical: added.data.is_some() && !added.estimated,
@@ -864,6 +869,34 @@ fn stated_interval(rounds: &[Value], id: &str, param: &str) -> Option<(f64, f64)
         }
     }
     None
+}
+
+/// Coverage (inside, total) of the parameters of the found hidden causes (`claimed`)
+/// that no pick sets: an inverter rate scale hidden on `decel_fwd` is stated with its
+/// `accel_fwd` too, whose truth is the neutral value. Where the stated interval is the
+/// parameter's whole range the run does not excite it: not counted.
+fn rest_covered(rounds: &[Value], from: usize, s: &Scenario, claimed: &BTreeSet<String>) -> (usize, usize) {
+    let picked: Vec<(&str, &str)> = s
+        .picks
+        .iter()
+        .filter_map(|p| match p {
+            Pick::Library { id, param, .. } => Some((*id, *param)),
+            _ => None,
+        })
+        .collect();
+    let found = |sp: &&workbench::diagnose::library::ParamSpec| {
+        picked.iter().any(|(id, param)| claim_key(id, param) == sp.cause && claimed.contains(sp.cause))
+            && !picked.contains(&(sp.effect, sp.param))
+    };
+    let mut n = (0, 0);
+    for sp in library(&model_core::Params::default()).iter().filter(found) {
+        let stated = stated_interval(&rounds[from..], sp.cause, sp.param)
+            .or_else(|| estimate_interval(&rounds[..from], sp.cause, sp.param));
+        let Some((lo, hi)) = stated.filter(|&(lo, hi)| lo > sp.lower || hi < sp.upper) else { continue };
+        n.0 += usize::from(lo <= sp.neutral && sp.neutral <= hi);
+        n.1 += 1;
+    }
+    n
 }
 
 /// The 95 % interval the estimate of round 1 stated for `param` of the set member `id`,
@@ -1103,6 +1136,12 @@ fn summary(o: &[Outcome]) -> bool {
     let ((ii, it), (pi, pt)) = (cov_where(false), cov_where(true));
     println!("  maps as identified {}, maps perturbed {}", pct(ii, it), pct(pi, pt));
     println!("  found with no interval stated: {}", o.iter().map(|x| x.unstated).sum::<usize>());
+    let (ri, rt) = o.iter().fold((0, 0), |a, x| (a.0 + x.coverage_rest.0, a.1 + x.coverage_rest.1));
+    println!(
+        "  the found effects' other stated parameters (truth: neutral): {}; all together {}",
+        pct(ri, rt),
+        pct(cin + ri, ctot + rt)
+    );
     let rate = |a: usize, b: usize| if b == 0 { 1.0 } else { a as f64 / b as f64 };
     let cov = rate(cin, ctot);
     rate(honest, total) >= 0.95
