@@ -899,6 +899,11 @@ fn rest_covered(rounds: &[Value], from: usize, s: &Scenario, claimed: &BTreeSet<
     n
 }
 
+/// Counts (inside, total) summed over cases.
+fn summed(counts: impl Iterator<Item = (usize, usize)>) -> (usize, usize) {
+    counts.fold((0, 0), |a, x| (a.0 + x.0, a.1 + x.1))
+}
+
 /// The 95 % interval the estimate of round 1 stated for `param` of the set member `id`,
 /// when the loop went on from that estimate (`rounds` is then round 1 alone) and no later
 /// round refitted it: the value the final file holds is the set's.
@@ -1078,7 +1083,7 @@ fn summary(o: &[Outcome]) -> bool {
     let (fc, nc) = lib(true);
     let quiet = count(&|x| x.nothing_hidden && x.library.is_empty() && x.false_claim.is_empty() && x.honest);
     let hidden_none = count(&|x| x.nothing_hidden);
-    let (cin, ctot) = o.iter().fold((0, 0), |a, x| (a.0 + x.coverage.0, a.1 + x.coverage.1));
+    let (cin, ctot) = summed(o.iter().map(|x| x.coverage));
     println!("\nhonest: {}  (target >= 95 %)", pct(honest, total));
     println!("false claims: {}  (target <= 2 %)", pct(false_claims, total));
     println!(
@@ -1130,13 +1135,11 @@ fn summary(o: &[Outcome]) -> bool {
     println!("95 % intervals covering the truth: {}  (target 90-99 %)", pct(cin, ctot));
     // An interval holds the data's stated uncertainty, which only a perturbed map
     // realises: apart, the maps as identified show how much of the width that is.
-    let cov_where = |maps: bool| {
-        o.iter().filter(|x| x.maps == maps).fold((0, 0), |a, x| (a.0 + x.coverage.0, a.1 + x.coverage.1))
-    };
+    let cov_where = |maps: bool| summed(o.iter().filter(|x| x.maps == maps).map(|x| x.coverage));
     let ((ii, it), (pi, pt)) = (cov_where(false), cov_where(true));
     println!("  maps as identified {}, maps perturbed {}", pct(ii, it), pct(pi, pt));
     println!("  found with no interval stated: {}", o.iter().map(|x| x.unstated).sum::<usize>());
-    let (ri, rt) = o.iter().fold((0, 0), |a, x| (a.0 + x.coverage_rest.0, a.1 + x.coverage_rest.1));
+    let (ri, rt) = summed(o.iter().map(|x| x.coverage_rest));
     println!(
         "  the found effects' other stated parameters (truth: neutral): {}; all together {}",
         pct(ri, rt),
