@@ -362,10 +362,15 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
         .map_err(|e| CmdError::Runtime(format!("{src}: diagnosis failed: {e}")))?;
     let within = match args.maps_within_uncertainty {
         true => Some(
-            diagnose::estimate_within_uncertainty(&campaign, &fitted.series, &o, &diagnosis.proposed)
-                .map_err(|e| {
-                    CmdError::Runtime(format!("{src}: the estimate within the uncertainty failed: {e}"))
-                })?,
+            diagnose::estimate_within_uncertainty(
+                &campaign,
+                &fitted.series,
+                &o,
+                (&diagnosis.proposed, diagnosis.trade.as_ref()),
+            )
+            .map_err(|e| {
+                CmdError::Runtime(format!("{src}: the estimate within the uncertainty failed: {e}"))
+            })?,
         ),
         false => None,
     };

@@ -481,6 +481,13 @@ pub struct Diagnosis {
     /// The base effects plus the effect to add (for `--write-effects`).
     #[serde(skip)]
     pub proposed: Effects,
+    /// Where the verdict proposes nothing: the base effects plus its best candidate, when
+    /// it is refused only for making a channel worse (`Evidence::refused_for_worse`), at its
+    /// refitted values: a trade a wrong map may cause, which the estimate within the
+    /// uncertainty tries with the maps estimated beside it, as an empirical table is
+    /// tried beside it (`beside_refused`).
+    #[serde(skip)]
+    pub trade: Option<Effects>,
     /// When the library leaves error: an empirical correction of the maps, fitted on
     /// top of `proposed` (for `--write-data`), or why none is offered.
     pub empirical: Option<Empirical>,
@@ -594,6 +601,8 @@ fn stages(
     selected.retain(|(e, _)| v.named.contains(e));
     let stated = stated(&ev, &v);
     let taken_out = ev.set.filter(|s| s.effects == v.named).map(|s| s.removed.clone()).unwrap_or_default();
+    let trade =
+        v.named.is_empty().then(|| ev.refused_for_worse(0.0).map(|(c, _)| ev.proposed(Some(c)))).flatten();
     let sentence = match empirical.as_ref() {
         Some(e) if e.refused.is_none() => format!("{}; {}", v.sentence, e.offer()),
         _ => v.sentence,
@@ -611,6 +620,7 @@ fn stages(
         confounded,
         unexplained: v.unexplained,
         proposed: v.proposed,
+        trade,
         empirical,
     })
 }
@@ -703,7 +713,7 @@ fn beside_refused(
     alone: Option<&Empirical>,
     fit: &dyn Fn(Effects) -> Option<Empirical>,
 ) -> Option<(Verdict, Empirical)> {
-    let (c, why) = ev.refused_for_worse()?;
+    let (c, why) = ev.refused_for_worse(ev.o.explain_fraction)?;
     let t = fit(ev.proposed(Some(c))).filter(|t| t.refused.is_none())?;
     let together = c.reduction() + (1.0 - c.reduction()) * t.removes();
     let table_alone = alone.filter(|e| e.refused.is_none()).map_or(0.0, Empirical::removes);

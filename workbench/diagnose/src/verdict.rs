@@ -285,15 +285,17 @@ impl Evidence<'_> {
     }
 
     /// The best significant candidate refused only because it makes a channel worse
-    /// (with that reason), when it removes at least `explain_fraction` of the excess (the
-    /// bar a lead must clear to be called missing: it is claimed although it harms a
-    /// channel alone, and a weaker one is as often a wrong map's error absorbed): a real
-    /// effect can do that where a wrong map's error cancelled part of its own (a
-    /// connector resistance beside an inverter map that draws too little current), and
-    /// is then tried with a map correction beside it ([`Self::with_table`]).
-    pub(super) fn refused_for_worse(&self) -> Option<(&Candidate, String)> {
+    /// (with that reason), when it removes at least `least` of the excess: a real effect
+    /// can do that where a wrong map's error cancelled part of its own (a connector
+    /// resistance beside an inverter map that draws too little current), and is then
+    /// tried with a map correction beside it ([`Self::with_table`], at `explain_fraction`:
+    /// the bar a lead must clear to be called missing, as it is claimed although it harms
+    /// a channel alone, and a weaker one is as often a wrong map's error absorbed) or with
+    /// the maps estimated within their uncertainty (at any share: the estimate's own
+    /// rules judge it there).
+    pub(super) fn refused_for_worse(&self, least: f64) -> Option<(&Candidate, String)> {
         let c = self.ranking.iter().find(|c| c.significant)?;
-        if self.refusal_but_worse(c).is_some() || c.reduction() < self.o.explain_fraction {
+        if self.refusal_but_worse(c).is_some() || c.reduction() < least {
             return None;
         }
         let why = self.worse(&self.after(c.effect)?.sim)?;

@@ -98,7 +98,9 @@ pub(super) struct Pick {
 /// The ordinary verdict's set as the selection's first stage: every library cause whose
 /// parameters `proposed` (the verdict's effects) sets apart from the model's (`pb.fx`),
 /// all its parameters freed from the verdict's values; `None` where it proposes none.
-pub(super) fn verdict(pb: &Problem, proposed: &Effects) -> Option<Pick> {
+/// `verdict`: the verdict proposes them ([`Credit::verdict`]); otherwise they are its
+/// candidate refused only for a trade, which the selection's rules judge as any other.
+pub(super) fn verdict(pb: &Problem, proposed: &Effects, verdict: bool) -> Option<Pick> {
     let specs = library(&pb.o.params);
     let differs = |e: &usize| current_value(proposed, &specs[*e]) != current_value(&pb.fx, &specs[*e]);
     let (mut credits, mut free) = (Vec::new(), Vec::new());
@@ -114,7 +116,7 @@ pub(super) fn verdict(pb: &Problem, proposed: &Effects) -> Option<Pick> {
             shared: 0.0,
             sensor: idx.iter().all(|&e| specs[e].is_chain()),
             ci95: Vec::new(),
-            verdict: true,
+            verdict,
         });
         free.extend(at);
     }
