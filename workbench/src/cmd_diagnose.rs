@@ -135,7 +135,8 @@ pub struct DiagnoseArgs {
     /// Also estimate the maps and parameters within their stated uncertainty
     /// (docs/MODEL.md: the σ of every map and parameter and the smooth shapes of their
     /// error, an ASSUMED prior) by re-simulation, and report how much of each channel's
-    /// error that leaves, the verdict's causes refitted with the maps, and which library
+    /// error that leaves, the verdict's causes (where it proposes none, its best candidate
+    /// refused only for making a channel worse) refitted with the maps, and which library
     /// causes add beyond them (each taken refitted with the maps). The diagnosis itself is
     /// unchanged. Slow: about 300 simulations per
     /// iterate, up to ten iterates until settled, again for each cause taken.
