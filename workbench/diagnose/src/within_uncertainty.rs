@@ -738,7 +738,7 @@ impl<'a> Problem<'a> {
             located = Some(cause);
         }
         let intervals = self.intervals(at, &g).ok_or("the set's normal equations are singular")?;
-        let drop = match self.unsupported(values, &intervals, kept) {
+        let drop = match self.unsupported(values, &self.reported(at, &intervals), kept) {
             Some(cause) => Some((cause, None)),
             None => self.drifting(at, kept)?.map(|(c, why)| (c, Some(why))),
         };
