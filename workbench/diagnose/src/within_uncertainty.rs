@@ -569,7 +569,7 @@ pub(super) fn estimate(
     let fit = pb.fit(vec![0.0; pb.unknowns.len()])?;
     let (each, picks) = credit::round(&pb, &fit.best, &[], true)?;
     let mut credits = credit::Credits { each, ..Default::default() };
-    let first = credit::verdict(&pb, proposed, true).or_else(|| credit::verdict(&pb, trade?, false));
+    let first = credit::first_stage(&pb, proposed, true).or_else(|| credit::first_stage(&pb, trade?, false));
     let (picks, fallback) = match first {
         Some(v) => (vec![v], picks),
         None => (picks, Vec::new()),
@@ -690,7 +690,7 @@ fn select(
     if let Some((stage, at, intervals)) = last.filter(|_| !credits.set.is_empty()) {
         credits.after_set = stage.energies(&at.r);
         credits.with_set = Some((stage.data(&at.x), stage.effects(&at.x)));
-        credit::set_intervals(&mut credits.set, &stage.free, &stage.reported(&at, &intervals));
+        credit::set_intervals(&mut credits.set, &stage.free, &intervals);
     }
     Ok(())
 }
@@ -710,7 +710,8 @@ fn gone_with(s: &ParamSpec, taken: &[String], chains: &[&str]) -> bool {
 struct Needless<'a> {
     /// A member to drop, with why where it drifts.
     drop: Option<(String, Option<String>)>,
-    /// The set's 95 % intervals (empty where the refit no longer needs a member).
+    /// The set's 95 % intervals as reported ([`Problem::reported`]; empty where the refit
+    /// no longer needs a member).
     intervals: Vec<[f64; 2]>,
     /// The member the refit needs least, kept for the located structure it clears.
     located: Option<String>,
@@ -737,8 +738,9 @@ impl<'a> Problem<'a> {
             }
             located = Some(cause);
         }
-        let intervals = self.intervals(at, &g).ok_or("the set's normal equations are singular")?;
-        let drop = match self.unsupported(values, &self.reported(at, &intervals), kept) {
+        let posterior = self.intervals(at, &g).ok_or("the set's normal equations are singular")?;
+        let intervals = self.reported(at, &posterior);
+        let drop = match self.unsupported(values, &intervals, kept) {
             Some(cause) => Some((cause, None)),
             None => self.drifting(at, kept)?.map(|(c, why)| (c, Some(why))),
         };

@@ -100,7 +100,7 @@ pub(super) struct Pick {
 /// all its parameters freed from the verdict's values; `None` where it proposes none.
 /// `verdict`: the verdict proposes them ([`Credit::verdict`]); otherwise they are its
 /// candidate refused only for a trade, which the selection's rules judge as any other.
-pub(super) fn verdict(pb: &Problem, proposed: &Effects, verdict: bool) -> Option<Pick> {
+pub(super) fn first_stage(pb: &Problem, proposed: &Effects, verdict: bool) -> Option<Pick> {
     let specs = library(&pb.o.params);
     let differs = |e: &usize| current_value(proposed, &specs[*e]) != current_value(&pb.fx, &specs[*e]);
     let (mut credits, mut free) = (Vec::new(), Vec::new());
