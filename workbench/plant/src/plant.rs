@@ -284,7 +284,7 @@ pub struct Plant {
     p_load: [f64; 2],
     elec: Electrics,
     out: ElectricsOut,
-    /// [µs] when the supply collapsed (no busbar voltage carries the draw).
+    /// [µs] when the supply collapsed (no busbar or DC-link voltage carries the draw).
     collapsed_at_us: Option<u64>,
 }
 
@@ -753,8 +753,9 @@ impl Plant {
             self.advance_us(every_us)?;
             if let Some(t) = self.collapsed_at_us {
                 return Err(SetupError::Step(format!(
-                    "the supply collapsed at t = {} s: no busbar voltage carries the draw \
-                     (supply_resistance / supply_current_limit too large for this test)",
+                    "the supply collapsed at t = {} s: no busbar or DC-link voltage carries the \
+                     draw (supply_resistance, supply_current_limit, or the connector's resistance \
+                     and its drift behind dc_link, too large for this test)",
                     t as f64 * 1e-6
                 )));
             }
