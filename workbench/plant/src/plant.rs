@@ -753,7 +753,7 @@ impl Plant {
             self.advance_us(every_us)?;
             if let Some(t) = self.collapsed_at_us {
                 return Err(SetupError::Step(format!(
-                    "the supply collapsed at t = {} s: no busbar or DC-link voltage carries the \
+                    "the supply collapsed at t = {:.6} s: no busbar or DC-link voltage carries the \
                      draw (supply_resistance, supply_current_limit, or the connector's resistance \
                      and its drift behind dc_link, too large for this test)",
                     t as f64 * 1e-6
@@ -762,7 +762,7 @@ impl Plant {
             let sample = self.sample();
             if let Some(i) = sample.values.iter().position(|v| !v.is_finite()) {
                 return Err(SetupError::Step(format!(
-                    "the plant diverged: {} is {} at t = {} s",
+                    "the plant diverged: {} is {} at t = {:.6} s",
                     CHANNELS[i].name(),
                     sample.values[i],
                     sample.t_us as f64 * 1e-6
