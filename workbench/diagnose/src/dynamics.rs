@@ -66,7 +66,7 @@ pub(super) fn is_dynamic_sensor(effect: &str) -> bool {
 }
 
 /// The other dynamic cause of the same channel: the lag of a delay and the delay of a lag.
-fn sibling(effect: &str) -> Option<String> {
+pub(super) fn sibling(effect: &str) -> Option<String> {
     delay_of(effect).or_else(|| effect.strip_prefix(DELAY).map(|channel| format!("{LAG}{channel}")))
 }
 
