@@ -22,9 +22,10 @@ use crate::uncertainty::{fold_jackknife_std, misfit_factor};
 /// The ordinary diagnosis' [`crate::systematic::ALIASED`] (0.9) decides which items its
 /// fit leaves unestimated; here the maps are estimated beside the set and the share
 /// widens the reported intervals, which [`Problem::unsupported`] reads. At 0.9, three of
-/// the eight misses of proofs 31 and 32 (read since, as tuning cases) were set members beside perturbed maps trading with an unknown
-/// the run tells apart by a quarter of its response (ident.neutral_decel_hs_fwd_s: 74 %
-/// of it in inverter_rate_scale.decel_fwd's): decel_fwd 0.790 [0.785, 0.794] for 0.776
+/// the eight misses of proofs 31 and 32 (read since, as tuning cases) were set members
+/// beside perturbed maps trading with an unknown the run tells apart by a quarter of its
+/// response (ident.neutral_decel_hs_fwd_s: 74 % of it in inverter_rate_scale.decel_fwd's):
+/// decel_fwd 0.790 [0.785, 0.794] for 0.776
 /// (1,009,028), 0.719 [0.715, 0.723] for 0.710 (1,009,049); axle_friction_scale.left
 /// 1.472 [1.468, 1.476] for 1.308 (1,008,937). At 0.7 the three hold their truth, at
 /// ±0.036, ±0.035 and ±0.29. ASSUMED.
