@@ -478,7 +478,7 @@ pub struct Diagnosis {
     pub confounded: Vec<ConfoundedGroup>,
     /// Where the unexplained residual is (for partial or unexplained verdicts).
     pub unexplained: Option<Location>,
-    /// The base effects plus the effect to add (for `--write-effects`).
+    /// The base effects plus the effects the verdict names (the base where it names none).
     #[serde(skip)]
     pub proposed: Effects,
     /// Where the verdict proposes nothing: the base effects plus its best candidate, when

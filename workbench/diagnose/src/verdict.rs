@@ -516,7 +516,6 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
         return v;
     }
     let lead = ev.ranking.iter().find(|c| ev.counts(c));
-    let proposed = ev.proposed(lead);
     let lead_fit = lead.and_then(|l| ev.after(l.effect));
     let ratio_after = lead_fit.map_or(ev.p.excess_ratio, |f| f.energy / ev.p.e_noise);
     let (red_a, after_a) = lead_fit.map_or((0.0, f64::INFINITY), |f| ev.on_affected(f));
@@ -579,10 +578,13 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
         Some(note) if kind != VerdictKind::NothingMissing => format!("{sentence}; {note}"),
         _ => sentence,
     };
-    let lead = match kind {
-        VerdictKind::Missing | VerdictKind::Partial => lead.map(|l| l.effect),
-        _ => None,
-    };
+    // Only a verdict that names its lead proposes it: an unexplained or noise-like verdict
+    // whose best candidate counts proposes nothing (proof 36, 1,009,440: an unexplained
+    // verdict's unnamed differential friction went on as "the verdict's" into the estimate
+    // within the uncertainty, and was claimed).
+    let named = matches!(kind, VerdictKind::Missing | VerdictKind::Partial);
+    let proposed = ev.proposed(lead.filter(|_| named));
+    let lead = lead.filter(|_| named).map(|l| l.effect);
     let removed = lead_fit.filter(|_| lead.is_some()).map_or(0.0, |f| (ev.p.e0 - f.energy) / ev.p.excess);
     Verdict { kind, sentence, lead, unexplained, proposed, named: lead.into_iter().collect(), removed }
 }
@@ -1104,6 +1106,40 @@ mod tests {
         let (why, v) = judge(0.1);
         assert_eq!(why, None);
         assert_eq!(v.lead, Some("supply_resistance"), "{}", v.sentence);
+    }
+
+    /// A candidate that counts but explains too little of the run to be named leaves the
+    /// verdict unexplained, and an unexplained verdict proposes nothing: proof 36's
+    /// 1,009,440 carried such a lead's refit (a differential friction) as "the verdict's"
+    /// into the estimate within the uncertainty, which claimed it. Named, it is proposed.
+    #[test]
+    fn an_unnamed_lead_is_not_proposed() {
+        let n = 400;
+        let channels = [Channel::VDc, Channel::IDc];
+        let wave = |k: usize| (k as f64 * 0.05).sin();
+        let other = |k: usize| (k as f64 * 0.013).cos();
+        let judge = |i_amp: f64| {
+            let meas: Vec<Vec<f64>> = vec![
+                (0..n).map(|k| 24.0 + 0.2 * wave(k)).collect(),
+                (0..n).map(|k| 100.0 + i_amp * other(k)).collect(),
+            ];
+            let sim = |v: f64| -> Vec<Vec<f32>> {
+                vec![(0..n).map(|k| (24.0 + v * wave(k)) as f32).collect(), vec![100.0f32; n]]
+            };
+            let p = Prepared::single_run(meas, vec![("V_DC", 0.01), ("I_DC", 0.1)], sim(0.0));
+            let o = Options::default();
+            let s = supply_resistance_only(&o);
+            let after = sim(0.1);
+            let energy = channel_energies(&p, &after).iter().sum();
+            let (cands, fits) =
+                (vec![supply_candidate(&p, energy, true)], vec![(0, Fit::fixed(vec![0.5], after, energy))]);
+            let ev = one_candidate(&p, &s, &o, &channels, 0.01, (&cands, &fits));
+            assert!(ev.counts(&cands[0]));
+            let v = conclude(&ev);
+            (v.kind, v.lead, v.proposed != o.base)
+        };
+        assert_eq!(judge(5.0), (VerdictKind::Unexplained, None, false));
+        assert_eq!(judge(0.0), (VerdictKind::Partial, Some("supply_resistance"), true));
     }
 
     /// Gains of both flange torques fitted alike (1.0805 and 1.0809, each ± 0.035) are one
