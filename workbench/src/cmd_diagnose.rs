@@ -367,7 +367,7 @@ pub fn run(args: &DiagnoseArgs) -> Result<Diagnosed, CmdError> {
                 &campaign,
                 &fitted.series,
                 &o,
-                (&diagnosis.proposed, diagnosis.trade.as_ref()),
+                (&diagnosis.proposed, diagnosis.unnamed.as_ref()),
             )
             .map_err(|e| {
                 CmdError::Runtime(format!("{src}: the estimate within the uncertainty failed: {e}"))

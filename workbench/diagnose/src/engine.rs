@@ -452,6 +452,18 @@ pub enum VerdictKind {
     Unexplained,
 }
 
+/// The candidate a verdict that names nothing could not name ([`Diagnosis::unnamed`]).
+#[derive(Debug, Clone)]
+pub struct Unnamed {
+    /// The base effects plus the candidate at its refitted values.
+    pub effects: Effects,
+    /// It counts (significant, refused by no test) but explains too little of the run to
+    /// be named. Otherwise it is the best candidate, refused only for making a channel
+    /// worse (`Evidence::refused_for_worse`): a trade a wrong map may cause, as an
+    /// empirical table is tried beside it (`beside_refused`).
+    pub counts: bool,
+}
+
 /// Everything a diagnosis found.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Diagnosis {
@@ -481,13 +493,10 @@ pub struct Diagnosis {
     /// The base effects plus the effects the verdict names (the base where it names none).
     #[serde(skip)]
     pub proposed: Effects,
-    /// Where the verdict proposes nothing: the base effects plus its best candidate, when
-    /// it is refused only for making a channel worse (`Evidence::refused_for_worse`), at its
-    /// refitted values: a trade a wrong map may cause, which the estimate within the
-    /// uncertainty tries with the maps estimated beside it, as an empirical table is
-    /// tried beside it (`beside_refused`).
+    /// Where the verdict names nothing: the candidate it could not name, which the
+    /// estimate within the uncertainty starts from with the maps estimated beside it.
     #[serde(skip)]
-    pub trade: Option<Effects>,
+    pub unnamed: Option<Unnamed>,
     /// When the library leaves error: an empirical correction of the maps, fitted on
     /// top of `proposed` (for `--write-data`), or why none is offered.
     pub empirical: Option<Empirical>,
@@ -601,8 +610,7 @@ fn stages(
     selected.retain(|(e, _)| v.named.contains(e));
     let stated = stated(&ev, &v);
     let taken_out = ev.set.filter(|s| s.effects == v.named).map(|s| s.removed.clone()).unwrap_or_default();
-    let trade =
-        v.named.is_empty().then(|| ev.refused_for_worse(0.0).map(|(c, _)| ev.proposed(Some(c)))).flatten();
+    let unnamed = v.named.is_empty().then(|| unnamed(&ev)).flatten();
     let sentence = match empirical.as_ref() {
         Some(e) if e.refused.is_none() => format!("{}; {}", v.sentence, e.offer()),
         _ => v.sentence,
@@ -620,7 +628,7 @@ fn stages(
         confounded,
         unexplained: v.unexplained,
         proposed: v.proposed,
-        trade,
+        unnamed,
         empirical,
     })
 }
@@ -650,6 +658,15 @@ fn evidence<'a>(
         confounded: &[],
         base_structure: None,
     }
+}
+
+/// The candidate a verdict that names nothing could not name ([`Diagnosis::unnamed`]).
+pub(super) fn unnamed(ev: &Evidence) -> Option<Unnamed> {
+    let (c, counts) = match ev.ranking.iter().find(|c| ev.counts(c)) {
+        Some(lead) => (lead, true),
+        None => (ev.refused_for_worse(0.0)?.0, false),
+    };
+    Some(Unnamed { effects: ev.proposed(Some(c)), counts })
 }
 
 /// Stage 8: when the library leaves error, an empirical correction of the maps, fitted

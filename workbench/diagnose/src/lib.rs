@@ -27,5 +27,5 @@ mod uncertainty;
 mod unread;
 mod verdict;
 
-pub use engine::{diagnose, Diagnosis, Options, ProbeRate, ProfileProbe, Twin, VerdictKind};
+pub use engine::{diagnose, Diagnosis, Options, ProbeRate, ProfileProbe, Twin, Unnamed, VerdictKind};
 pub use within_uncertainty::{estimate_within_uncertainty, Estimate};

@@ -579,9 +579,8 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
         _ => sentence,
     };
     // Only a verdict that names its lead proposes it: an unexplained or noise-like verdict
-    // whose best candidate counts proposes nothing (proof 36, 1,009,440: an unexplained
-    // verdict's unnamed differential friction went on as "the verdict's" into the estimate
-    // within the uncertainty, and was claimed).
+    // whose best candidate counts proposes nothing (the lead goes to the estimate within
+    // the uncertainty as `Diagnosis::unnamed`, said as such).
     let named = matches!(kind, VerdictKind::Missing | VerdictKind::Partial);
     let proposed = ev.proposed(lead.filter(|_| named));
     let lead = lead.filter(|_| named).map(|l| l.effect);
@@ -1109,9 +1108,9 @@ mod tests {
     }
 
     /// A candidate that counts but explains too little of the run to be named leaves the
-    /// verdict unexplained, and an unexplained verdict proposes nothing: proof 36's
-    /// 1,009,440 carried such a lead's refit (a differential friction) as "the verdict's"
-    /// into the estimate within the uncertainty, which claimed it. Named, it is proposed.
+    /// verdict unexplained, and an unexplained verdict proposes nothing (its proposal held
+    /// the unnamed lead's refit, which proof 36's 1,009,440 then showed as the verdict's
+    /// set); the lead goes on as the candidate it could not name. Named, it is proposed.
     #[test]
     fn an_unnamed_lead_is_not_proposed() {
         let n = 400;
@@ -1136,10 +1135,11 @@ mod tests {
             let ev = one_candidate(&p, &s, &o, &channels, 0.01, (&cands, &fits));
             assert!(ev.counts(&cands[0]));
             let v = conclude(&ev);
-            (v.kind, v.lead, v.proposed != o.base)
+            let unnamed = v.named.is_empty().then(|| super::super::engine::unnamed(&ev)).flatten();
+            (v.kind, v.lead, v.proposed != o.base, unnamed.map(|u| (u.counts, u.effects != o.base)))
         };
-        assert_eq!(judge(5.0), (VerdictKind::Unexplained, None, false));
-        assert_eq!(judge(0.0), (VerdictKind::Partial, Some("supply_resistance"), true));
+        assert_eq!(judge(5.0), (VerdictKind::Unexplained, None, false, Some((true, true))));
+        assert_eq!(judge(0.0), (VerdictKind::Partial, Some("supply_resistance"), true, None));
     }
 
     /// Gains of both flange torques fitted alike (1.0805 and 1.0809, each ± 0.035) are one

@@ -43,8 +43,8 @@ pub struct Credit {
     /// A member of the set: each parameter's 95 % interval `[lo, hi]` at the set's last
     /// settled refit, the maps estimated beside it (empty otherwise).
     pub ci95: Vec<[f64; 2]>,
-    /// A member of the ordinary verdict's set, freed beside the maps from the verdict's
-    /// values: it has no credit of its own beyond the estimate (`linear` 0), and only a
+    /// A member of the ordinary verdict's set (or the lead it counts but cannot name,
+    /// [`crate::Unnamed::counts`]), freed beside the maps from the verdict's values: it has no credit of its own beyond the estimate (`linear` 0), and only a
     /// refit that no longer needs it drops it (not the interval rule).
     pub verdict: bool,
 }
@@ -98,8 +98,9 @@ pub(super) struct Pick {
 /// The ordinary verdict's set as the selection's first stage: every library cause whose
 /// parameters `proposed` (the verdict's effects) sets apart from the model's (`pb.fx`),
 /// all its parameters freed from the verdict's values; `None` where it proposes none.
-/// `verdict`: the verdict proposes them ([`Credit::verdict`]); otherwise they are its
-/// candidate refused only for a trade, which the selection's rules judge as any other.
+/// `verdict`: the verdict proposes them, or read them as it reads those it proposes
+/// ([`Credit::verdict`], [`crate::Unnamed::counts`]); otherwise the selection's rules
+/// judge them as any other.
 pub(super) fn first_stage(pb: &Problem, proposed: &Effects, verdict: bool) -> Option<Pick> {
     let specs = library(&pb.o.params);
     let differs = |e: &usize| current_value(proposed, &specs[*e]) != current_value(&pb.fx, &specs[*e]);
