@@ -164,8 +164,9 @@ impl Evidence<'_> {
         if c.params.is_empty() || holds(&self.s.specs, &self.s.starts, c.effect) {
             return None;
         }
-        // Written so that an undetermined σ (infinite) or a NaN counts as within.
-        let within = |fp: &FittedParam| !((fp.value - fp.start).abs() >= fp.std);
+        // An undetermined σ (infinite) or a NaN counts as within.
+        let within =
+            |fp: &FittedParam| (fp.value - fp.start).abs() < fp.std || fp.std.is_nan() || fp.value.is_nan();
         let fp = c.params.iter().max_by(|a, b| {
             ((a.value - a.start).abs() / a.std).total_cmp(&((b.value - b.start).abs() / b.std))
         })?;
