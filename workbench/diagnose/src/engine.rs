@@ -610,7 +610,7 @@ fn stages(
     selected.retain(|(e, _)| v.named.contains(e));
     let stated = stated(&ev, &v);
     let taken_out = ev.set.filter(|s| s.effects == v.named).map(|s| s.removed.clone()).unwrap_or_default();
-    let unnamed = v.named.is_empty().then(|| unnamed(&ev)).flatten();
+    let unnamed = unnamed(&ev, &v);
     let sentence = match empirical.as_ref() {
         Some(e) if e.refused.is_none() => format!("{}; {}", v.sentence, e.offer()),
         _ => v.sentence,
@@ -660,13 +660,18 @@ fn evidence<'a>(
     }
 }
 
-/// The candidate a verdict that names nothing could not name ([`Diagnosis::unnamed`]).
-pub(super) fn unnamed(ev: &Evidence) -> Option<Unnamed> {
-    let (c, counts) = match ev.ranking.iter().find(|c| ev.counts(c)) {
-        Some(lead) => (lead, true),
-        None => (ev.refused_for_worse(0.0)?.0, false),
-    };
-    Some(Unnamed { effects: ev.proposed(Some(c)), counts })
+/// The candidate verdict `v` could not name ([`Diagnosis::unnamed`]): its counting lead
+/// kept apart ([`Verdict::unnamed`]), or its best refused only for making a channel worse.
+/// A verdict withdrawn for a table ([`table_beats_library`]) keeps no lead apart.
+pub(super) fn unnamed(ev: &Evidence, v: &Verdict) -> Option<Unnamed> {
+    if !v.named.is_empty() {
+        return None;
+    }
+    if let Some(effects) = v.unnamed {
+        return Some(Unnamed { effects, counts: true });
+    }
+    let (c, _) = ev.refused_for_worse(0.0)?;
+    Some(Unnamed { effects: ev.proposed(Some(c)), counts: false })
 }
 
 /// Stage 8: when the library leaves error, an empirical correction of the maps, fitted

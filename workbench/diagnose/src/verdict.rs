@@ -73,6 +73,9 @@ pub(super) struct Verdict {
     pub named: Vec<&'static str>,
     /// Share of the excess error the proposal removes, confirmed on the simulator.
     pub removed: f64,
+    /// Where the verdict names nothing although its lead counts (it explains too little
+    /// of the run): the base effects plus the lead's refit ([`crate::Unnamed`]).
+    pub unnamed: Option<Effects>,
 }
 
 /// Whether `a` and `b` are a channel's delay or lag and [`PHYSICAL_DELAY`] moving that
@@ -326,6 +329,7 @@ impl Evidence<'_> {
             proposed: self.proposed(Some(c)),
             named: vec![c.effect],
             removed: c.reduction(),
+            unnamed: None,
         }
     }
 
@@ -579,13 +583,14 @@ pub(super) fn conclude(ev: &Evidence) -> Verdict {
         _ => sentence,
     };
     // Only a verdict that names its lead proposes it: an unexplained or noise-like verdict
-    // whose best candidate counts proposes nothing (the lead goes to the estimate within
-    // the uncertainty as `Diagnosis::unnamed`, said as such).
+    // whose lead counts proposes nothing, and keeps the lead apart as `unnamed`.
     let named = matches!(kind, VerdictKind::Missing | VerdictKind::Partial);
     let proposed = ev.proposed(lead.filter(|_| named));
+    let unnamed = lead.filter(|_| !named).map(|l| ev.proposed(Some(l)));
     let lead = lead.filter(|_| named).map(|l| l.effect);
     let removed = lead_fit.filter(|_| lead.is_some()).map_or(0.0, |f| (ev.p.e0 - f.energy) / ev.p.excess);
-    Verdict { kind, sentence, lead, unexplained, proposed, named: lead.into_iter().collect(), removed }
+    let named = lead.into_iter().collect();
+    Verdict { kind, sentence, lead, unexplained, proposed, named, removed, unnamed }
 }
 
 /// The verdict on the selected set, when it has two or more effects, its joint refit
@@ -674,6 +679,7 @@ fn set_verdict(ev: &Evidence) -> Option<Verdict> {
         proposed: with_values(&set.base, &specs, &set.fit.values),
         named: set.effects.clone(),
         removed,
+        unnamed: None,
     })
 }
 
@@ -950,6 +956,7 @@ pub(super) fn table_beats_library(ev: &Evidence, v: &Verdict, table_heldout: f64
         proposed: ev.o.base,
         named: Vec::new(),
         removed: 0.0,
+        unnamed: None,
     }
 }
 
@@ -1135,7 +1142,7 @@ mod tests {
             let ev = one_candidate(&p, &s, &o, &channels, 0.01, (&cands, &fits));
             assert!(ev.counts(&cands[0]));
             let v = conclude(&ev);
-            let unnamed = v.named.is_empty().then(|| super::super::engine::unnamed(&ev)).flatten();
+            let unnamed = super::super::engine::unnamed(&ev, &v);
             (v.kind, v.lead, v.proposed != o.base, unnamed.map(|u| (u.counts, u.effects != o.base)))
         };
         assert_eq!(judge(5.0), (VerdictKind::Unexplained, None, false, Some((true, true))));

@@ -44,8 +44,9 @@ pub struct Credit {
     /// settled refit, the maps estimated beside it (empty otherwise).
     pub ci95: Vec<[f64; 2]>,
     /// A member of the ordinary verdict's set (or the lead it counts but cannot name,
-    /// [`crate::Unnamed::counts`]), freed beside the maps from the verdict's values: it has no credit of its own beyond the estimate (`linear` 0), and only a
-    /// refit that no longer needs it drops it (not the interval rule).
+    /// [`crate::Unnamed::counts`]), freed beside the maps from the verdict's values: it
+    /// has no credit of its own beyond the estimate (`linear` 0), and only a refit that
+    /// no longer needs it drops it (not the interval rule).
     pub verdict: bool,
 }
 
