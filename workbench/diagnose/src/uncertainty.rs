@@ -104,12 +104,7 @@ pub(super) fn parameter_std(
     // in raw units a resistance in Ω dwarfs a stiffness in N m/rad by 1e13 (a stiffness
     // refitted beside a held connector resistance was called undetermined).
     let scale: Vec<f64> = specs.iter().map(|s| s.delta).collect();
-    let jac: Vec<Vec<Vec<f64>>> = fit
-        .jac
-        .iter()
-        .zip(&scale)
-        .map(|(ji, h)| ji.iter().map(|jc| jc.iter().map(|j| j * h).collect()).collect())
-        .collect();
+    let jac = scaled(&fit.jac, &scale);
     let unscaled = |v: Vec<f64>| -> Vec<f64> { v.into_iter().zip(&scale).map(|(x, h)| x * h).collect() };
     let sandwich = sandwich_std(&p.weights, &resid, &jac, level_win, 2 * level_win);
     let mut std = unscaled(sandwich.clone());
@@ -407,6 +402,69 @@ fn toeplitz_apply(rho: &[f64], col: &[f64]) -> Vec<f64> {
         .collect()
 }
 
+/// The 68.27 % quantile of χ² with `k` degrees of freedom: the region "within one σ"
+/// of `k` parameters taken jointly (Δχ² of the PDG's table for 1–6, Wilson–Hilferty's
+/// cube beyond, within 0.01 of it there).
+pub(super) fn chi2_one_sigma(k: usize) -> f64 {
+    const Q: [f64; 6] = [1.0, 2.30, 3.53, 4.72, 5.89, 7.04];
+    match k {
+        0 => 0.0,
+        1..=6 => Q[k - 1],
+        _ => {
+            let a = 2.0 / (9.0 * k as f64);
+            k as f64 * (1.0 - a + 0.4753 * a.sqrt()).powi(3)
+        }
+    }
+}
+
+/// Squared distance of a refit's first `z.len()` parameters from where they started,
+/// jointly: `z` holds each one's departure over its reported σ (`None`: undetermined,
+/// left out), read in the correlation the refit's information `J'WJ` gives them, the
+/// refit's other parameters (effects held beside) marginalised; `scale` is every
+/// parameter's sensitivity step, which keeps `J'WJ` well conditioned. Two parameters each
+/// within one σ of their start may jointly be far from it: a differential friction's
+/// Coulomb and viscous parts, whose estimates trade against each other. `None` when the
+/// information or the correlation is not finite.
+pub(super) fn joint_distance(weights: &Weights, fit: &Fit, scale: &[f64], z: &[Option<f64>]) -> Option<f64> {
+    let n = fit.jac.len();
+    let jac = scaled(&fit.jac, scale);
+    if jac.len() != n || z.len() > n {
+        return None;
+    }
+    let (g, _) = normal_equations_by(weights, &jac, |_, _| 0.0, 1, |_, _| 0);
+    let g = g.first()?;
+    let kept: Vec<(usize, f64)> = z.iter().enumerate().filter_map(|(i, v)| v.map(|v| (i, v))).collect();
+    // Columns of G⁻¹ for the kept parameters; their covariance block, then correlation.
+    let cols: Vec<Vec<f64>> = kept
+        .iter()
+        .map(|&(i, _)| {
+            let mut e = vec![0.0; n];
+            e[i] = 1.0;
+            solve_spd(g, &e, 1e-12)
+        })
+        .collect::<Option<_>>()?;
+    let m = kept.len();
+    let cov = |a: usize, b: usize| cols[b][kept[a].0];
+    let mut r = vec![0.0; m * m];
+    for a in 0..m {
+        for b in 0..m {
+            r[a * m + b] = cov(a, b) / (cov(a, a) * cov(b, b)).sqrt();
+        }
+    }
+    let zk: Vec<f64> = kept.iter().map(|&(_, v)| v).collect();
+    let d2 = if m == 0 { 0.0 } else { dot(&zk, &solve_spd(&r, &zk, 1e-12)?) };
+    d2.is_finite().then_some(d2)
+}
+
+/// A Jacobian `jac[parameter][channel][sample]` in each parameter's own scale (per unit
+/// of `scale`, its sensitivity step).
+fn scaled(jac: &[Vec<Vec<f64>>], scale: &[f64]) -> Vec<Vec<Vec<f64>>> {
+    jac.iter()
+        .zip(scale)
+        .map(|(ji, h)| ji.iter().map(|jc| jc.iter().map(|j| j * h).collect()).collect())
+        .collect()
+}
+
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
@@ -584,6 +642,38 @@ mod tests {
         let g = [2.0, 0.0, 0.0, 3.0];
         assert_eq!(sandwich_diagonal(&g, &[0.0; 4], 2), vec![f64::INFINITY; 2]);
         assert_eq!(sandwich_diagonal(&g, &[-1.0, 0.0, 0.0, 1.0], 2)[0], f64::INFINITY);
+    }
+
+    /// Two parameters whose responses overlap (cosine 0.9: their estimates correlate at
+    /// -0.9), each 0.9 σ from its start: in the same direction they are jointly far from
+    /// it (χ² ≈ 16, as a Coulomb and a viscous friction that trade against each other and
+    /// both moved up), in opposite directions within it (≈ 0.85, below 2.30); one
+    /// parameter alone is its own z²; an undetermined one is left out; a third parameter
+    /// held beside them (uncorrelated) changes nothing.
+    #[test]
+    fn correlated_parameters_are_judged_jointly() {
+        let m = 4_000;
+        let a = gaussian(3, m);
+        let b0 = gaussian(4, m);
+        let b: Vec<f64> = a.iter().zip(&b0).map(|(x, y)| 0.9 * x + (1.0f64 - 0.81).sqrt() * y).collect();
+        let c = gaussian(5, m);
+        let fit = |cols: Vec<Vec<f64>>| Fit {
+            jac: cols.into_iter().map(|v| vec![v]).collect(),
+            ..Fit::fixed(vec![], vec![], 0.0)
+        };
+        let w = Weights::uniform([1.0]);
+        let two = fit(vec![a.clone(), b.clone()]);
+        let d =
+            |f: &Fit, scale: &[f64], z: &[Option<f64>]| joint_distance(&w, f, scale, z).unwrap_or(f64::NAN);
+        let same = d(&two, &[1.0, 1.0], &[Some(0.9), Some(0.9)]);
+        let opposite = d(&two, &[1.0, 1.0], &[Some(0.9), Some(-0.9)]);
+        assert!(same > 12.0 && same > chi2_one_sigma(2), "{same}");
+        assert!(opposite < 1.2 && opposite < chi2_one_sigma(2), "{opposite}");
+        assert!((d(&two, &[1.0, 1.0], &[Some(0.9), None]) - 0.81).abs() < 1e-9);
+        let three = fit(vec![a, b, c]);
+        let held = d(&three, &[1.0, 1e3, 1e-3], &[Some(0.9), Some(0.9)]);
+        assert!((held - same).abs() < 0.05 * same, "{held} {same}");
+        assert!((chi2_one_sigma(7) - 8.18).abs() < 0.02 && chi2_one_sigma(1) == 1.0);
     }
 
     /// A new effect whose response an item of the data mimics (a friction map shifted by
