@@ -44,7 +44,7 @@ use super::scan::scan_valleys;
 use super::selection::{close_runners_up, greedy, next_leaders, refit_list, score_effects};
 use super::sensitivities::{sensitivities, Sensitivities};
 use super::twin::Resumable;
-use super::uncertainty::{parameter_std, Spread};
+use super::uncertainty::{joint_distance, parameter_std, Spread};
 use super::verdict::{
     base_structure, conclude, stated, structure_in, table_beats_library, Evidence, Verdict,
     PREFER_TABLE_MARGIN,
@@ -333,6 +333,12 @@ pub struct Candidate {
     /// The effects already in the model, refitted beside it (their values change with
     /// it, and are written with it: [`super::refit::with_held`]).
     pub held: Vec<Stated>,
+    /// How far its refit moved its own parameters from where they started, jointly:
+    /// `z' R⁻¹ z` of their departures over their reported σ in their correlation
+    /// ([`super::uncertainty::joint_distance`]), and how many were determined; `None`:
+    /// not refitted, or not computable. Computed once with the refit: the verdict reads
+    /// it whenever it asks whether the candidate counts.
+    pub departure: Option<(f64, usize)>,
 }
 
 /// A map whose one shape does what a sensor cause does: the run cannot tell them apart.
@@ -381,6 +387,7 @@ impl Candidate {
             map_alias: None,
             refused: None,
             held: Vec::new(),
+            departure: None,
         }
     }
 }
@@ -981,9 +988,23 @@ fn confirm_leaders(
         confirm(&mut cands[ci], &fit, &spread, &specs(ci), p);
         cands[ci].drift = spread.drift;
         cands[ci].held = beside;
+        let scale: Vec<f64> = s.groups[ci].1.iter().chain(fit.held_ix()).map(|&i| s.specs[i].delta).collect();
+        cands[ci].departure = departure(p, &fit, &scale, &cands[ci].params);
         fits.push((ci, fit));
     }
     fits
+}
+
+/// [`Candidate::departure`] of the refit `fit` that gave `params` (their values, starts
+/// and reported σ); `scale`: the sensitivity step of each of its parameters, the
+/// candidate's and those held beside.
+fn departure(p: &Prepared, fit: &Fit, scale: &[f64], params: &[FittedParam]) -> Option<(f64, usize)> {
+    let z: Vec<Option<f64>> = params
+        .iter()
+        .map(|fp| Some((fp.value - fp.start) / fp.std).filter(|z| z.is_finite() && fp.std.is_finite()))
+        .collect();
+    let d2 = joint_distance(&p.weights, fit, scale, &z)?;
+    Some((d2, z.iter().flatten().count()))
 }
 
 /// `v` after its first `k` elements (empty when it has no more).

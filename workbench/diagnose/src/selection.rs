@@ -85,6 +85,7 @@ pub(super) fn score_effects(
                 refused: None,
                 held: Vec::new(),
                 energy_after: None,
+                departure: None,
             };
             (cand, th)
         })

@@ -17,7 +17,7 @@ use super::preparation::{channel_energies, flagged_windows, said_worse, Prepared
 use super::refit::Fit;
 use super::selection::{absorbs, is_gauge};
 use super::sensitivities::Sensitivities;
-use super::uncertainty::{chi2_one_sigma, joint_distance, separation};
+use super::uncertainty::{chi2_one_sigma, separation};
 use simrod_compare::structure;
 
 /// Refitted and significant candidates first: those whose refit leaves no structure in
@@ -148,7 +148,7 @@ impl Evidence<'_> {
         if f.credit(self.p.e0) < self.o.min_reduction_of_noise * self.p.e_noise && !self.clears_structure(c) {
             return Some("its refit removes less than a chance fit of the noise".into());
         }
-        self.unresolved(c, f)
+        self.unresolved(c)
             .or_else(|| self.refusal_of_shape(c, f))
             .or_else(|| self.alike_delay_refused(c, f))
             .or_else(|| self.delay_alike(c, f))
@@ -156,7 +156,7 @@ impl Evidence<'_> {
     }
 
     /// Why an effect new to the model is not named when its parameters lie jointly within
-    /// one reported σ of the thesis model's values ([`joint_distance`] below
+    /// one reported σ of the thesis model's values ([`Candidate::departure`] below
     /// [`chi2_one_sigma`] of their number): the run does not tell it from absence, and no
     /// test of what it stands for can be read. On proofs 31–36 the verdicts stated 13
     /// effects each of whose parameters was within one σ, 11 not hidden, 9 of them axle
@@ -164,21 +164,11 @@ impl Evidence<'_> {
     /// one parameter at a time the test refused a differential friction that removes the
     /// whole excess (single-effect proof, seed 101: Coulomb 2.08 ± 2.24 N m, its viscous
     /// part trading against it); jointly that is far from absence.
-    fn unresolved(&self, c: &Candidate, f: &Fit) -> Option<String> {
+    fn unresolved(&self, c: &Candidate) -> Option<String> {
         if c.params.is_empty() || holds(&self.s.specs, &self.s.starts, c.effect) {
             return None;
         }
-        let z: Vec<Option<f64>> = c
-            .params
-            .iter()
-            .map(|fp| Some((fp.value - fp.start) / fp.std).filter(|z| z.is_finite() && fp.std.is_finite()))
-            .collect();
-        let ci = self.fits.iter().find(|(ci, _)| self.cands[*ci].effect == c.effect).map(|(ci, _)| *ci)?;
-        let own = self.s.groups.get(ci)?.1.iter();
-        let scale: Vec<f64> =
-            own.chain(f.held_ix()).map(|&i| self.s.specs.get(i).map(|sp| sp.delta)).collect::<Option<_>>()?;
-        let d2 = joint_distance(&self.p.weights, f, &scale, &z)?;
-        let k = z.iter().flatten().count();
+        let (d2, k) = c.departure?;
         if d2 >= chi2_one_sigma(k) {
             return None;
         }
@@ -1319,12 +1309,10 @@ mod tests {
             moves: vec!["C_Kistler_L"],
             leaves_structure: Some(false),
             params: vec![fp],
+            departure: Some((((1.08 - start) / std).powi(2), 1)),
             ..Candidate::named("sensor_gain.c_kistler_l", 0.9)
         };
-        // The gain's Jacobian: the channel's output per unit gain.
-        let jac = vec![vec![(0..n).map(wave).collect()]];
-        let fit = Fit { jac, ..Fit::fixed(vec![1.08], after, energy) };
-        let (cands, fits) = (vec![c], vec![(0, fit)]);
+        let (cands, fits) = (vec![c], vec![(0, Fit::fixed(vec![1.08], after, energy))]);
         let ev = one_candidate(&p, &s, &o, &channels, 0.01, (&cands, &fits));
         ev.refusal(&cands[0])
     }
