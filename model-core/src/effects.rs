@@ -144,6 +144,32 @@ pub struct Fit {
     /// as a share of the value, whichever the error scales with; none for a parameter
     /// not measured there. A diagnosis counts it in the parameter's uncertainty.
     pub step_bias: Step,
+    /// Which side of the truth `step_bias` puts a fit.
+    pub step_bias_side: Side,
+}
+
+/// Which side of the truth the twin's step puts a fit of a parameter
+/// ([`Fit::step_bias`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    /// Either side, by up to the bias: an error of unknown sign.
+    Either,
+    /// Above it, by up to the bias: the error's sign is known (a controller delay the
+    /// 1 ms twin fits 0.0–1.4 ms long on the physics plant, never short).
+    Above,
+}
+
+impl Side {
+    /// A bias of `amount` on this side as `(centre, half-width)`: the truth lies within
+    /// the half-width of the fit less the centre. An error of unknown sign is centred on
+    /// the fit; one of known sign shifts the truth off it by half the amount and leaves
+    /// half of it unknown.
+    pub fn split(self, amount: f64) -> (f64, f64) {
+        match self {
+            Self::Either => (0.0, amount),
+            Self::Above => (0.5 * amount, 0.5 * amount),
+        }
+    }
 }
 
 impl Fit {
@@ -156,6 +182,7 @@ impl Fit {
             in_steps: InSteps::Continuous,
             scan: None,
             step_bias: Step::Abs(0.0),
+            step_bias_side: Side::Either,
         }
     }
     /// A step relative to the neutral value, and bounds.
@@ -167,6 +194,7 @@ impl Fit {
             in_steps: InSteps::Continuous,
             scan: None,
             step_bias: Step::Abs(0.0),
+            step_bias_side: Side::Either,
         }
     }
     /// Realised in whole time steps.
@@ -184,6 +212,10 @@ impl Fit {
     /// Biased by the twin's step by up to `bias` ([`Fit::step_bias`]).
     pub const fn step_biased(self, bias: Step) -> Self {
         Self { step_bias: bias, ..self }
+    }
+    /// Biased by the twin's step above the truth, by up to `bias` ([`Side::Above`]).
+    pub const fn step_biased_above(self, bias: Step) -> Self {
+        Self { step_bias: bias, step_bias_side: Side::Above, ..self }
     }
     /// The step at a neutral value.
     pub fn delta(&self, neutral: f64) -> f64 {
@@ -519,7 +551,7 @@ effects! {
     controller_delay => controller_delay_s: f32 = 0.0,
         proof proof("delay_s", 0.05, 0.15, TP14, (1.0, 0.0)), Whole;
     {
-        delay_s(): "s", Range::closed(0.0, 10.0), fit Some(Fit::abs(0.02, 0.0, 0.25).in_whole_steps().step_biased(Step::Abs(9.7e-4))), model None,
+        delay_s(): "s", Range::closed(0.0, 10.0), fit Some(Fit::abs(0.02, 0.0, 0.25).in_whole_steps().step_biased_above(Step::Abs(1.4e-3))), model None,
             "throttle-to-controller delay, at most 256 steps (0 = off)";
     }
     /// Multipliers on the Curtis ramp rates `[accel, decel]` for `[forward, reverse]`

@@ -344,7 +344,7 @@ fn a_campaign_resolves_what_one_run_confounds() {
         let lead = &j["ranking"][0];
         assert_eq!(lead["effect"], "differential_friction", "{}", j["verdict"]);
         let v = lead["params"]["coulomb_nm"].as_f64().unwrap();
-        let bias =
+        let (_, bias) =
             workbench::diagnose::proof::declared_step_bias("differential_friction", "coulomb_nm", v).unwrap();
         let sd = lead["uncertainty"]["coulomb_nm"].as_f64().unwrap();
         let data = lead["uncertainty_data"]["coulomb_nm"].as_f64().unwrap();

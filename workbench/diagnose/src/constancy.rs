@@ -476,6 +476,7 @@ mod tests {
             upper: 10.0,
             unit: "N m s/rad",
             step_bias: model_core::effects::Step::Abs(0.0),
+            step_bias_side: model_core::effects::Side::Either,
         };
         let sd = 0.01 / x.iter().map(|v| v * v).sum::<f64>().sqrt();
         let resid: Vec<Vec<f64>> = (0..=op.len())
@@ -496,6 +497,7 @@ mod tests {
             upper: 10.0,
             unit: "-",
             step_bias: model_core::effects::Step::Abs(0.0),
+            step_bias_side: model_core::effects::Side::Either,
         }
     }
 

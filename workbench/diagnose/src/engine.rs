@@ -212,7 +212,8 @@ pub struct FittedParam {
     /// Of `std`, the part the identified data's stated uncertainty contributes
     /// ([`super::systematic`], added in quadrature); 0 when none, NaN when not refitted.
     pub std_data: f64,
-    /// 95 % interval (value ± 1.96 std, clipped to bounds; NaN when not refitted).
+    /// 95 % interval of the truth (value ± 1.96 std, less the centre of a step bias of
+    /// known sign: [`ParamSpec::ci95`], clipped to bounds; NaN when not refitted).
     pub ci95: (f64, f64),
     /// Unit.
     pub unit: &'static str,
@@ -222,15 +223,7 @@ impl FittedParam {
     /// Parameter `sp` refitted to `value` from `start`, with the σ reported (and its
     /// data part) and the 95 % interval clipped to the bounds.
     pub(super) fn refitted(sp: &ParamSpec, value: f64, (std, std_data): (f64, f64), start: f64) -> Self {
-        FittedParam {
-            name: sp.param,
-            value,
-            start,
-            std,
-            std_data,
-            ci95: ((value - 1.96 * std).max(sp.lower), (value + 1.96 * std).min(sp.upper)),
-            unit: sp.unit,
-        }
+        FittedParam { name: sp.param, value, start, std, std_data, ci95: sp.ci95(value, std), unit: sp.unit }
     }
 }
 

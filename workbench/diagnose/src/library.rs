@@ -4,7 +4,7 @@
 //! effect's declaration in `model_core::effects` (its `Fit`), so there is no table here
 //! to keep in step with the model.
 
-use model_core::effects::{Cause, Effects, InSteps, Step, EFFECTS};
+use model_core::effects::{Cause, Effects, InSteps, Side, Step, EFFECTS};
 use model_core::Params;
 
 /// One fittable parameter.
@@ -30,9 +30,24 @@ pub struct ParamSpec {
     /// How far the twin's step alone may move a fit of it
     /// ([`model_core::effects::Fit::step_bias`]).
     pub step_bias: Step,
+    /// Which side of the truth it puts a fit ([`model_core::effects::Fit::step_bias_side`]).
+    pub step_bias_side: Side,
 }
 
 impl ParamSpec {
+    /// The twin's step bias of a fit at `v` as `(centre, half-width)` ([`Side::split`]).
+    pub fn bias_at(&self, v: f64) -> (f64, f64) {
+        self.step_bias_side.split(self.step_bias.at(v))
+    }
+
+    /// The 95 % interval of the truth for a fit `v` reported at σ `sd` (which counts the
+    /// bias' half-width), within the search bounds: centred on `v` less the bias' centre
+    /// ([`Self::bias_at`]).
+    pub fn ci95(&self, v: f64, sd: f64) -> (f64, f64) {
+        let mid = v - self.bias_at(v).0;
+        ((mid - 1.96 * sd).max(self.lower), (mid + 1.96 * sd).min(self.upper))
+    }
+
     /// The finite-difference step from value `v`: `delta`, or `-delta` where that would
     /// pass the upper bound.
     pub fn step_from(&self, v: f64) -> f64 {
@@ -130,6 +145,7 @@ pub fn library(p: &Params) -> Vec<ParamSpec> {
                 upper: fit.upper,
                 unit: d.unit,
                 step_bias: fit.step_bias,
+                step_bias_side: fit.step_bias_side,
             });
         }
     }
@@ -168,6 +184,34 @@ pub fn current_value(fx: &Effects, s: &ParamSpec) -> f64 {
 mod tests {
     use super::*;
     use model_core::effects::LIBRARY;
+
+    /// A step bias of known sign (the controller delay's: the 1 ms twin fits it long)
+    /// moves the truth's interval off the fit by half the bias and keeps half of it as
+    /// unknown: the truth is held whether the fit fell at the bias' near end, its middle
+    /// or its far end, by an interval half as wide as the same bias of unknown sign needs.
+    #[test]
+    fn a_bias_of_known_sign_shifts_the_interval() {
+        let lib = library(&Params::default());
+        let d = lib.iter().find(|s| s.effect == "controller_delay").unwrap().clone();
+        assert_eq!(d.step_bias_side, Side::Above, "the controller delay's bias is declared above");
+        let either = ParamSpec { step_bias_side: Side::Either, ..d.clone() };
+        let t = 0.1;
+        let b = d.step_bias.at(t);
+        for k in [0.0, 0.5, 1.0] {
+            let v = t + k * b;
+            // The reported σ of a fit whose scatter is negligible: the bias' unknown part.
+            let sd = |s: &ParamSpec| s.bias_at(v).1 / 3f64.sqrt();
+            let (lo, hi) = d.ci95(v, sd(&d));
+            assert!(lo <= t && t <= hi, "fit {v}: [{lo}, {hi}] misses {t}");
+            let (elo, ehi) = either.ci95(v, sd(&either));
+            assert!((ehi - elo - 2.0 * (hi - lo)).abs() < 1e-12, "[{elo}, {ehi}] vs [{lo}, {hi}]");
+        }
+        // Below the truth is where the twin does not put it: a fit a whole bias short is
+        // outside.
+        let short = t - b;
+        let (lo, hi) = d.ci95(short, d.bias_at(short).1 / 3f64.sqrt());
+        assert!(hi < t, "fit {short}: [{lo}, {hi}] holds {t}");
+    }
 
     /// The numbers derive from the declarations as the old hand-kept table had them.
     #[test]

@@ -98,11 +98,13 @@ pub fn plant_run(
     Run { meas, twin: RecordedTwin::new(twin, channels) }
 }
 
-/// The twin's declared step bias of `id`.`param` at `value`
-/// ([`model_core::effects::Fit::step_bias`]); `None` for a parameter the library does not fit.
-pub fn declared_step_bias(id: &str, param: &str, value: f64) -> Option<f64> {
+/// The twin's declared step bias of `id`.`param` at `value` as `(centre, half-width)`
+/// ([`model_core::effects::Fit::step_bias`], [`model_core::effects::Side::split`]): the
+/// truth lies within the half-width of the fit less the centre. `None` for a parameter
+/// the library does not fit.
+pub fn declared_step_bias(id: &str, param: &str, value: f64) -> Option<(f64, f64)> {
     let fit = model_core::effects::effect(id)?.param(param)?.fit?;
-    Some(fit.step_bias.at(value))
+    Some(fit.step_bias_side.split(fit.step_bias.at(value)))
 }
 
 /// Diagnose a run blind (current model = the thesis model plus `base`).
@@ -161,7 +163,8 @@ pub fn judge(run: &Run, base: &Effects, truth: &Effects, truth_id: &str, d: &Dia
         Some(c) => c.params.iter().all(|fp| {
             let t = f64::from(truth.get(truth_id, fp.name).ok().flatten().unwrap_or(fp.start as f32));
             let hidden = hidden_params.contains(&fp.name);
-            let zi = (fp.value - t) / fp.std;
+            let centre = declared_step_bias(truth_id, fp.name, fp.value).map_or(0.0, |(c, _)| c);
+            let zi = (fp.value - centre - t) / fp.std;
             z.push((zi, hidden));
             // An undetermined parameter (σ = ∞: the run does not excite it) claims
             // nothing and cannot miss; the hidden parameter must be determined.

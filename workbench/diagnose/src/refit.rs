@@ -473,7 +473,7 @@ pub(super) fn confirm(cand: &mut Candidate, fit: &Fit, spread: &Spread, specs: &
         fp.value = v;
         fp.std = *shown;
         fp.std_data = *data;
-        fp.ci95 = ((v - 1.96 * shown).max(s.lower), (v + 1.96 * shown).min(s.upper));
+        fp.ci95 = s.ci95(v, *shown);
         cand.significant |= moved(v, fp.start, *sd, s);
     }
     for (c, ch) in cand.channels.iter_mut().enumerate() {
@@ -532,6 +532,7 @@ mod tests {
             upper,
             unit: "-",
             step_bias: model_core::effects::Step::Abs(0.0),
+            step_bias_side: model_core::effects::Side::Either,
         }
     }
 

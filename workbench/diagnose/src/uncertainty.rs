@@ -125,13 +125,14 @@ pub(super) fn parameter_std(
     }
     // A parameter the model can only realise in steps (a delay in whole time steps) is
     // uncertain by at least its quantisation; one the twin's step biases, by that bias.
-    // Both are bounded errors of unknown sign: uniform over ±half the quantum and over
-    // ±the bias (σ² = a²/3 for a half-width a).
+    // Both are bounded errors: uniform over ±half the quantum and over ± the bias' half
+    // width (σ² = a²/3 for a half-width a); a bias of known sign has half its amount
+    // unknown, its centre shifts the interval instead ([`ParamSpec::ci95`]).
     let bounded: Vec<f64> = specs
         .iter()
         .zip(&fit.values)
         .map(|(sp, v)| {
-            let (q, b) = (sp.quantum(dt), sp.step_bias.at(*v));
+            let (q, b) = (sp.quantum(dt), sp.bias_at(*v).1);
             q * q / 12.0 + b * b / 3.0
         })
         .collect();

@@ -59,9 +59,9 @@ impl Problem<'_> {
         let each = own.iter().zip(&posterior).zip(self.free.iter().zip(&values));
         let intervals = each.map(|((&i, sd), ((s, _), v))| {
             let sd = jack.as_ref().map_or(*sd, |j| sd.max(j[i]));
-            let (q, b) = (s.quantum(dt), s.step_bias.at(*v));
-            let half = 1.96 * ((birge * sd * s.delta).powi(2) + q * q / 12.0 + b * b / 3.0).sqrt();
-            [(v - half).max(s.lower), (v + half).min(s.upper)]
+            let (q, b) = (s.quantum(dt), s.bias_at(*v).1);
+            let (lo, hi) = s.ci95(*v, ((birge * sd * s.delta).powi(2) + q * q / 12.0 + b * b / 3.0).sqrt());
+            [lo, hi]
         });
         Some(intervals.collect())
     }
@@ -79,8 +79,8 @@ impl Problem<'_> {
         let values = self.values(&at.x);
         let each = self.free.iter().zip(values.iter().zip(intervals)).zip(&sd);
         let widened = each.map(|(((s, _), (v, [lo, hi])), sd)| {
-            let by = 1.96 * sd * s.delta;
-            [(v - (v - lo).hypot(by)).max(s.lower), (v + (hi - v).hypot(by)).min(s.upper)]
+            let (by, mid) = (1.96 * sd * s.delta, v - s.bias_at(*v).0);
+            [(mid - (mid - lo).hypot(by)).max(s.lower), (mid + (hi - mid).hypot(by)).min(s.upper)]
         });
         widened.collect()
     }
