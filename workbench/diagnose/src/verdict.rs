@@ -929,11 +929,24 @@ fn beside(held: &[Stated]) -> String {
     }
 }
 
-/// `param = value ± 95 % half-width unit, …`.
+/// `param = value ± 95 % half-width unit, …`; a parameter whose interval of the truth is
+/// moved off the fit by a step bias of known sign ([`crate::library::ParamSpec::ci95`])
+/// with that interval instead, as the half-width about the value would not hold it.
 fn values(params: &[FittedParam]) -> String {
     let each: Vec<String> = params
         .iter()
-        .map(|fp| format!("{} = {:.4} ± {:.4} {}", fp.name, fp.value, 1.96 * fp.std, fp.unit))
+        .map(|fp| {
+            let half = 1.96 * fp.std;
+            let (lo, hi) = fp.ci95;
+            if lo < fp.value - half - 1e-12 * half.abs() {
+                format!(
+                    "{} = {:.4} {} (the truth within [{lo:.4}, {hi:.4}]: the twin's step fits it long)",
+                    fp.name, fp.value, fp.unit
+                )
+            } else {
+                format!("{} = {:.4} ± {:.4} {}", fp.name, fp.value, half, fp.unit)
+            }
+        })
         .collect();
     each.join(", ")
 }
@@ -1266,6 +1279,23 @@ mod tests {
         let why = gain_refusal(false, 1.0, 0.1).unwrap_or_default();
         assert!(why.contains("(1.0800 ± 0.1000 -) lies within one σ"), "{why}");
         assert_eq!(gain_refusal(false, 1.03, 0.1), None);
+    }
+
+    /// A controller delay's truth lies below its fit (the twin's step fits it long): the
+    /// verdict states that interval, not a half-width about the fit that would not hold
+    /// it; a parameter of unknown bias keeps `value ± half-width`.
+    #[test]
+    fn a_fit_biased_long_is_stated_with_the_truths_interval() {
+        let specs = crate::library::library(&model_core::Params::default());
+        let spec = |e: &str| specs.iter().find(|s| s.effect == e).unwrap();
+        let stated = |e: &str, v: f64| values(&[FittedParam::refitted(spec(e), v, (0.0005, 0.0), 0.0)]);
+        let delay = stated("controller_delay", 0.0865);
+        assert_eq!(
+            delay,
+            "delay_s = 0.0865 s (the truth within [0.0848, 0.0868]: the twin's step fits it long)"
+        );
+        let r = stated("supply_resistance", 0.0178);
+        assert_eq!(r, "resistance_ohm = 0.0178 ± 0.0010 ohm");
     }
 
     /// Why a C_Kistler_L gain of 1.08 (reported σ `std`) fitting its channel is refused,
