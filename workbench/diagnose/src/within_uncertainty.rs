@@ -36,6 +36,7 @@ use super::library::{current_value, with_values, ParamSpec};
 use super::linalg::solve_spd;
 use super::preparation::{prepare, run_each, said_worse, Prepared};
 use settling::Settling;
+use simrod_numerics::linalg::weighted_products;
 
 /// Most fit samples the fit reads (every k-th of [`Prepared::idx`]); the prior's weight
 /// is scaled by the thinning so that it stands against the whole run's information.
@@ -372,16 +373,14 @@ impl<'a> Problem<'a> {
     }
 
     /// `C'WC` of columns `cols` with the prior's curvature at `x` on the diagonal (`n x n`).
-    fn gram(&self, cols: &[Outputs], x: &[f64]) -> Vec<f64> {
-        use rayon::prelude::*;
+    fn gram(&self, cols: &[Outputs], x: &[f64]) -> Result<Vec<f64>, String> {
         let n = cols.len();
-        let lower: Vec<Vec<f64>> =
-            (0..n).into_par_iter().map(|i| (0..=i).map(|j| self.dot(&cols[i], &cols[j])).collect()).collect();
-        let mut g = vec![0.0; n * n];
-        for (i, row) in lower.iter().enumerate() {
-            for (j, v) in row.iter().enumerate() {
-                g[i * n + j] = *v;
-                g[j * n + i] = *v;
+        let mut g = self.products(cols, cols)?;
+        for i in 0..n {
+            // The lower triangle is what the solves read; the product's rounding may
+            // differ by a bit between the two.
+            for j in 0..i {
+                g[j * n + i] = g[i * n + j];
             }
             g[i * n + i] += match self.curvature(i, x[i]) {
                 // Conditioning only: a library parameter carries no prior.
@@ -389,7 +388,17 @@ impl<'a> Problem<'a> {
                 p => p,
             };
         }
-        g
+        Ok(g)
+    }
+
+    /// `A'WB` of columns `a` and `b` on the rows read, row-major `a.len() x b.len()`
+    /// ([`weighted_products`]: the estimate's Jacobian has a few hundred columns).
+    fn products(&self, a: &[Outputs], b: &[Outputs]) -> Result<Vec<f64>, String> {
+        fn slices(v: &[Outputs]) -> Vec<&[Vec<f64>]> {
+            v.iter().map(Vec::as_slice).collect()
+        }
+        weighted_products(&slices(a), &slices(b), &self.w)
+            .ok_or_else(|| "a column is not shaped as the rows read".into())
     }
 
     fn residual(&self, y: &Outputs) -> Outputs {
@@ -476,15 +485,14 @@ impl<'a> Problem<'a> {
 
     /// The right-hand side of a step from `x` with columns `cols` and residual `r`:
     /// `C'W r` less the prior's pull at `x` (the normal matrix is [`Problem::gram`]).
-    fn gradient(&self, cols: &[Outputs], r: &Outputs, x: &[f64]) -> Vec<f64> {
-        let b = self.data_gradient(cols, r).into_iter().zip(x).enumerate();
-        b.map(|(i, (b, v))| b - self.pull(i, *v, *v)).collect()
+    fn gradient(&self, cols: &[Outputs], r: &Outputs, x: &[f64]) -> Result<Vec<f64>, String> {
+        let b = self.data_gradient(cols, r)?.into_iter().zip(x).enumerate();
+        Ok(b.map(|(i, (b, v))| b - self.pull(i, *v, *v)).collect())
     }
 
     /// `C'W r`: the data's part of [`Problem::gradient`].
-    fn data_gradient(&self, cols: &[Outputs], r: &Outputs) -> Vec<f64> {
-        use rayon::prelude::*;
-        cols.par_iter().map(|c| self.dot(c, r)).collect()
+    fn data_gradient(&self, cols: &[Outputs], r: &Outputs) -> Result<Vec<f64>, String> {
+        self.products(cols, std::slice::from_ref(r))
     }
 
     /// The Gauss–Newton step from `x`: minimises `|r − C dx|²_W` plus the prior's penalty
@@ -492,8 +500,8 @@ impl<'a> Problem<'a> {
     /// solved with the piece where it lands until that no longer changes (an active set;
     /// solving with the piece at `x` alone stepped across the wall and back, case 505,576).
     fn step(&self, cols: &[Outputs], r: &Outputs, x: &[f64]) -> Option<Vec<f64>> {
-        let mut g = self.gram(cols, x);
-        let data = self.data_gradient(cols, r);
+        let mut g = self.gram(cols, x).ok()?;
+        let data = self.data_gradient(cols, r).ok()?;
         let (n, mut z) = (x.len(), x.to_vec());
         for _ in 0..ACTIVE_SET_SOLVES {
             let b: Vec<f64> = (0..n).map(|i| data[i] - self.pull(i, x[i], z[i])).collect();
@@ -748,7 +756,7 @@ impl<'a> Problem<'a> {
     /// runs cannot tell from absent ([`Problem::unsupported`]) or whose value drifts
     /// ([`Problem::drifting`]), neither among the verdict's `kept`.
     fn needless(&self, at: &Point, values: &[f64], kept: &[&str]) -> Result<Needless<'a>, String> {
-        let g = self.gram(&at.jacobian, &at.x);
+        let g = self.gram(&at.jacobian, &at.x)?;
         let mut located = None;
         if let Some(cause) = self.redundant(at, &g)? {
             let (pb, fit, clears) = self.without_located(at, values, &cause)?;

@@ -150,7 +150,7 @@ pub(super) fn round(
         });
     let effect_cols: Vec<Outputs> =
         runs.into_iter().map(|o| o.map(|out| pb.change(out, &at.y))).collect::<Result<_, _>>()?;
-    let normal = Normal::new(pb, &at.jacobian, &effect_cols, &at.r, &at.x);
+    let normal = Normal::new(pb, &at.jacobian, &effect_cols, &at.r, &at.x)?;
     let shared = (0..effect_cols.len()).map(|e| normal.shared(e)).collect();
     let cx = Context { pb, at, specs: &specs, starts, steps, normal, shared };
     let causes: Vec<(&'static str, Vec<usize>)> = effect_groups(&specs)
@@ -333,13 +333,19 @@ struct Step {
 impl Normal {
     /// The normal equations with the nuisance's Gram `gram` (prior included) of columns
     /// `cols`, the effects' columns `effects`, at residual `r` and nuisance `x`.
-    fn new(pb: &Problem, cols: &[Outputs], effects: &[Outputs], r: &Outputs, x: &[f64]) -> Self {
-        use rayon::prelude::*;
-        let bn = pb.gradient(cols, r, x);
-        let gne = effects.par_iter().map(|e| cols.iter().map(|c| pb.dot(e, c)).collect()).collect();
-        let gee = effects.par_iter().map(|e| effects.iter().map(|f| pb.dot(e, f)).collect()).collect();
-        let be = effects.par_iter().map(|e| pb.dot(e, r)).collect();
-        Self { n: cols.len(), gnn: pb.gram(cols, x), bn, gne, gee, be }
+    fn new(
+        pb: &Problem,
+        cols: &[Outputs],
+        effects: &[Outputs],
+        r: &Outputs,
+        x: &[f64],
+    ) -> Result<Self, String> {
+        let bn = pb.gradient(cols, r, x)?;
+        let rows = |g: Vec<f64>, k: usize| g.chunks(k.max(1)).map(<[f64]>::to_vec).collect::<Vec<_>>();
+        let gne = rows(pb.products(effects, cols)?, cols.len());
+        let gee = rows(pb.products(effects, effects)?, effects.len());
+        let be = pb.products(effects, std::slice::from_ref(r))?;
+        Ok(Self { n: cols.len(), gnn: pb.gram(cols, x)?, bn, gne, gee, be })
     }
 
     fn gee(&self, e: usize, f: usize) -> f64 {
