@@ -91,11 +91,12 @@ const PRODUCT_ROWS: usize = 256;
 
 /// Every weighted inner product `Σ_c Σ_t w[c][t] a_i[c][t] b_j[c][t]` of the columns `a`
 /// and `b` (each `[block][row]`, shaped as `w`), row-major `a.len() x b.len()`: the
-/// normal matrix `A'WB` of a weighted least-squares fit. A blocked matrix product
-/// (`matrixmultiply`, through `nalgebra`): one column pair at a time, a sequential sum
-/// of ~50,000 products waits on every addition; the estimate within the maps'
-/// uncertainty spent a third of its time there. The sum's order is fixed by the shapes
-/// alone, so the bits repeat from run to run on one machine. `None` when a column is
+/// normal matrix `A'WB` of a weighted least-squares fit. Formed as a blocked matrix
+/// product (`matrixmultiply`, through `nalgebra`), not one column pair at a time: there
+/// each pair's sequential sum of ~50,000 products waits on every addition, and the
+/// estimate within the maps' uncertainty spent a third of its time in them. The sum's
+/// order is fixed by the shapes alone, so the bits repeat from run to run on one
+/// machine (the product's kernel follows the CPU's features). `None` when a column is
 /// not shaped as `w`.
 pub fn weighted_products(a: &[&[Vec<f64>]], b: &[&[Vec<f64>]], w: &[Vec<f64>]) -> Option<Vec<f64>> {
     let shaped = |c: &&[Vec<f64>]| c.len() == w.len() && c.iter().zip(w).all(|(x, q)| x.len() == q.len());
@@ -103,10 +104,10 @@ pub fn weighted_products(a: &[&[Vec<f64>]], b: &[&[Vec<f64>]], w: &[Vec<f64>]) -
         return None;
     }
     let (na, nb) = (a.len(), b.len());
-    let mut sum = DMatrix::<f64>::zeros(na, nb);
     if na == 0 || nb == 0 {
         return Some(Vec::new());
     }
+    let mut sum = DMatrix::<f64>::zeros(na, nb);
     let (mut wa, mut bb) = (Vec::new(), Vec::new());
     for (c, wc) in w.iter().enumerate() {
         for start in (0..wc.len()).step_by(PRODUCT_ROWS) {
