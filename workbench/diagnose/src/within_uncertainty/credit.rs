@@ -341,7 +341,10 @@ impl Normal {
         x: &[f64],
     ) -> Result<Self, String> {
         let bn = pb.gradient(cols, r, x)?;
-        let rows = |g: Vec<f64>, k: usize| g.chunks(k.max(1)).map(<[f64]>::to_vec).collect::<Vec<_>>();
+        // One row per effect, also when the other side has no columns (`chunks` of a
+        // row-major product would then give no rows at all).
+        let rows =
+            |g: Vec<f64>, k: usize| (0..effects.len()).map(|e| g[e * k..(e + 1) * k].to_vec()).collect();
         let gne = rows(pb.products(effects, cols)?, cols.len());
         let gee = rows(pb.products(effects, effects)?, effects.len());
         let be = pb.products(effects, std::slice::from_ref(r))?;
