@@ -64,6 +64,11 @@
 //! (default 2) runs J cases at a time: the bench runs and comparisons of a case are
 //! single-threaded, so two cases keep both cores busy (the seconds column then counts
 //! the time the cases shared).
+//!
+//! A hidden effect not found is listed on its case's line with why (the round that came
+//! closest, [`Unfound`]) and, with `--maps-within-uncertainty`, how much of its signature
+//! the first round's estimate says the maps and parameters take and what would tell it
+//! from them ([`shared_with_maps`]).
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -285,6 +290,21 @@ impl Unfound {
         };
         Unfound { why, detail, removes: Some(reduction(c)) }
     }
+}
+
+/// How much of effect `id`'s signature the first round's estimate within the maps'
+/// uncertainty says the maps and parameters take (`shared`), and the field or group
+/// that, known exactly, leaves the most of it its own (`separator`), for a line of a
+/// case's failures: `None` without that estimate or that cause in it.
+fn shared_with_maps(rounds: &[Value], id: &str) -> Option<String> {
+    let credits = rounds.first()?["within_uncertainty"]["credits"].as_array()?;
+    let c = credits.iter().find(|c| c["cause"] == id)?;
+    let shared = c["shared"].as_f64()?;
+    let by = match (c["separator"]["unit"].as_str(), c["separator"]["shared_then"].as_f64()) {
+        (Some(unit), Some(then)) => format!(", {:.0} % with {unit} exact", 100.0 * then),
+        _ => String::new(),
+    };
+    Some(format!("; the maps take {:.0} %{by}", 100.0 * shared))
 }
 
 /// The sweep's flags, parsed once (an unknown flag or a bad value is an error, not a
@@ -803,7 +823,8 @@ fn judge(dir: &Path, c: &Case) -> Result<Outcome, String> {
         let unfound = (!found).then(|| Unfound::of(rounds, &key));
         if let Some(u) = &unfound {
             let against = beside.map(|r| format!("{r:.2}x the maps' error; ")).unwrap_or_default();
-            missed.push(format!("{id} not found ({against}{}: {})", u.why.label(), u.detail));
+            let shared = shared_with_maps(rounds, &key).unwrap_or_default();
+            missed.push(format!("{id} not found ({against}{}: {}{shared})", u.why.label(), u.detail));
         } else if let Some((lo, hi)) = stated_interval(&rounds[loop_.proposals_from..], &key, param)
             .or_else(|| estimate_interval(&rounds[..loop_.proposals_from], &key, param))
         {

@@ -23,6 +23,7 @@ use serde_json::{json, Map, Value};
 use crate::compare::regions;
 use crate::diagnose::engine::{FittedParam, Stated};
 use crate::diagnose::twin::{fitted_channels, BuiltinProbe, Campaign, RecordedTwin};
+use crate::diagnose::within_uncertainty::Credit;
 use crate::diagnose::{self, Diagnosis, Options, VerdictKind};
 use crate::effects_file::{format_effects, summarize_effects, write_effects};
 use crate::error::CmdError;
@@ -816,10 +817,11 @@ fn render_credits(e: &diagnose::Estimate, ranked: &[&str]) -> String {
             continue;
         };
         o.push_str(&format!(
-            "  {}: the verdict's, kept; the maps and parameters within their uncertainty take {} of its signature as well, and alone it adds {:.0} beyond the estimate: these runs cannot tell it from an error of the identified data\n",
+            "  {}: the verdict's, kept; the maps and parameters within their uncertainty take {} of its signature as well, and alone it adds {:.0} beyond the estimate: these runs cannot tell it from an error of the identified data{}\n",
             c.cause,
             pct(alone.shared),
-            alone.value()
+            alone.value(),
+            separated(alone)
         ));
     }
     for name in ranked {
@@ -828,11 +830,19 @@ fn render_credits(e: &diagnose::Estimate, ranked: &[&str]) -> String {
             continue;
         };
         o.push_str(&format!(
-            "  {name}: the maps and parameters within their uncertainty take it as well ({} of its signature): these runs cannot tell the two readings apart\n",
-            pct(c.shared)
+            "  {name}: the maps and parameters within their uncertainty take it as well ({} of its signature): these runs cannot tell the two readings apart{}\n",
+            pct(c.shared),
+            separated(c)
         ));
     }
     o
+}
+
+/// What would tell a cause from the maps ([`Credit::separator`]), for its report line.
+fn separated(c: &Credit) -> String {
+    c.separator.as_ref().map_or_else(String::new, |s| {
+        format!("; with {} known exactly the others would take {} of it", s.unit, pct(s.shared_then))
+    })
 }
 
 fn kind_name(k: &VerdictKind) -> &'static str {
@@ -863,7 +873,9 @@ fn kind_name(k: &VerdictKind) -> &'static str {
 /// {"fields": [[name, RMS σ]], "params": [[first key, factor]], "furthest": [coefficient
 /// or group, σ], "channels": [[channel,
 /// energy before, after]], "objective": [..], "settled", "credits": [{"cause", "params": [[name,
-/// value, unit]], "linear", "confirmed", "fraction", "shared", "sensor", "ci95": [[lo, hi]
+/// value, unit]], "linear", "confirmed", "fraction", "shared", "separator": null or {"unit" (the field or
+/// group that, known exactly, leaves the most of the cause its own), "shared_then" ("shared"
+/// by the other fields and groups)}, "sensor", "ci95": [[lo, hi]
 /// per parameter] (set members only)}] (each cause on its own), "set": [as "credits"] (the
 /// forward selection, each beyond the estimate refitted with those before), "after_set": [per channel], "provisional": [as "credits"] (taken, but the
 /// refit with them did not settle: not credited), "dropped": [cause] (taken, then not

@@ -1,7 +1,7 @@
 //! Matrix helpers of the diagnosis; the factorisation and solves are shared
 //! (`simrod_numerics::linalg`).
 
-pub use simrod_numerics::linalg::solve_spd;
+pub use simrod_numerics::linalg::{chol_solve, cholesky, solve_spd};
 
 /// The sub-matrix of `g` (`n x n`) on the index set `idx`.
 pub fn sub_matrix(g: &[f64], n: usize, idx: &[usize]) -> Vec<f64> {
@@ -13,6 +13,11 @@ pub fn sub_matrix(g: &[f64], n: usize, idx: &[usize]) -> Vec<f64> {
         }
     }
     out
+}
+
+/// `a · b`, summed in order.
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 /// `x' g x` for a sub-matrix layout.

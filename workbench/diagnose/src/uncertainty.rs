@@ -23,7 +23,7 @@
 
 use super::constancy::{drift, Drift};
 use super::library::ParamSpec;
-use super::linalg::{quad, solve_spd};
+use super::linalg::{dot, quad, solve_spd};
 use super::preparation::{residual, Prepared, Weights};
 use super::refit::Fit;
 use super::sensitivities::normal_equations_by;
@@ -464,10 +464,6 @@ fn scaled(jac: &[Vec<Vec<f64>>], scale: &[f64]) -> Vec<Vec<Vec<f64>>> {
         .zip(scale)
         .map(|(ji, h)| ji.iter().map(|jc| jc.iter().map(|j| j * h).collect()).collect())
         .collect()
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 #[cfg(test)]

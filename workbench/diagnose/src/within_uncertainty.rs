@@ -28,7 +28,7 @@ mod interval;
 mod located;
 mod settling;
 
-pub use credit::Credit;
+pub use credit::{Credit, Separator};
 
 use super::dynamics::sibling;
 use super::engine::{Options, Twin};
@@ -236,6 +236,24 @@ impl<'a> Problem<'a> {
             Unknown::Group(g) => self.unc.params[g].keys.first().copied().unwrap_or("").to_string(),
             Unknown::Effect(k) => self.free[k].0.param.to_string(),
         }
+    }
+
+    /// The nuisance's units, each with its unknowns: a field (its coefficients) or a
+    /// parameter group, named as [`Estimate::fields`] and [`Estimate::params`] name them.
+    fn units(&self) -> Vec<(String, Vec<usize>)> {
+        let mut units: Vec<(String, Vec<usize>)> = Vec::new();
+        for i in 0..self.unknowns.len() {
+            let name = match self.unknowns[i] {
+                Unknown::Coef { field, .. } => self.fields[field].name.clone(),
+                Unknown::Group(_) => self.name(i),
+                Unknown::Effect(_) => continue,
+            };
+            match units.iter_mut().find(|(n, _)| *n == name) {
+                Some((_, members)) => members.push(i),
+                None => units.push((name, vec![i])),
+            }
+        }
+        units
     }
 
     /// The model data at `x` (one value per unknown).

@@ -166,11 +166,7 @@ fn aliased_var(g: &[f64], k: usize, others: impl Iterator<Item = (Vec<f64>, f64)
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Products of columns over 100 samples.
-    fn dot(x: &[f64], y: &[f64]) -> f64 {
-        x.iter().zip(y).map(|(a, b)| a * b).sum()
-    }
+    use crate::linalg::dot;
 
     /// One parameter whose response is a ramp. An unknown whose response is 0.8 of the
     /// ramp plus a little of its own moves it by 0.8 per σ, and one with about three
