@@ -242,8 +242,8 @@ impl<'a> Problem<'a> {
     /// parameter group, named as [`Estimate::fields`] and [`Estimate::params`] name them.
     fn units(&self) -> Vec<(String, Vec<usize>)> {
         let mut units: Vec<(String, Vec<usize>)> = Vec::new();
-        for i in 0..self.unknowns.len() {
-            let name = match self.unknowns[i] {
+        for (i, u) in self.unknowns.iter().enumerate() {
+            let name = match *u {
                 Unknown::Coef { field, .. } => self.fields[field].name.clone(),
                 Unknown::Group(_) => self.name(i),
                 Unknown::Effect(_) => continue,

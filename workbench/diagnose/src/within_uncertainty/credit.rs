@@ -280,13 +280,9 @@ impl Context<'_, '_> {
     /// [`Separator`]: every field and parameter group in turn known exactly (out of the
     /// nuisance), one factorisation each.
     fn separate(&self, all: &mut [Credit], causes: &[(&'static str, Vec<usize>)]) {
-        let idx_of = |c: &Credit| causes.iter().find(|(n, _)| *n == c.cause).map(|(_, idx)| idx.clone());
-        let wanted: Vec<(usize, Vec<usize>)> = all
-            .iter()
-            .enumerate()
-            .filter(|(_, c)| c.shared >= SEPARATE_FROM)
-            .filter_map(|(k, c)| Some((k, idx_of(c)?)))
-            .collect();
+        let idx_of = |c: &Credit| causes.iter().find(|(n, _)| *n == c.cause).map(|(_, idx)| idx.as_slice());
+        let shared = all.iter().enumerate().filter(|(_, c)| c.shared >= SEPARATE_FROM);
+        let wanted: Vec<(usize, &[usize])> = shared.filter_map(|(k, c)| Some((k, idx_of(c)?))).collect();
         let mut cols: Vec<usize> = wanted.iter().flat_map(|(_, idx)| idx.iter().copied()).collect();
         cols.sort_unstable();
         cols.dedup();
